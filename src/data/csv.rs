@@ -1,0 +1,228 @@
+//! CSV parsing with line numbers in every error.
+
+use super::DataError;
+use std::path::{Path, PathBuf};
+
+/// A table of named numeric columns, as read from a CSV file with a header row.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Record {
+    /// Where the record came from (used in error messages).
+    pub path: PathBuf,
+    /// Column names, in file order.
+    pub names: Vec<String>,
+    /// Column data, one `Vec` per name.
+    pub columns: Vec<Vec<f64>>,
+}
+
+/// Read a CSV file with a header row and numeric cells.
+pub fn read_csv(path: &Path) -> Result<Record, DataError> {
+    let text = std::fs::read_to_string(path).map_err(|source| DataError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse_csv(path, &text)
+}
+
+/// Parse CSV text (see [`read_csv`]); `path` only labels the errors.
+pub fn parse_csv(path: &Path, text: &str) -> Result<Record, DataError> {
+    let p = || path.to_path_buf();
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+    let (_, header) = lines.next().ok_or(DataError::Empty { path: p() })?;
+    let header = header.trim_start_matches('\u{feff}');
+    let names: Vec<String> = header
+        .split(',')
+        .map(|s| s.trim().trim_matches('"').to_string())
+        .collect();
+    for (i, n) in names.iter().enumerate() {
+        if n.is_empty() {
+            return Err(DataError::EmptyHeaderName {
+                path: p(),
+                position: i + 1,
+            });
+        }
+        if names[..i].contains(n) {
+            return Err(DataError::DuplicateColumn {
+                path: p(),
+                name: n.clone(),
+            });
+        }
+    }
+    let mut columns: Vec<Vec<f64>> = vec![Vec::with_capacity(text.len() / (8 * names.len()) + 1); names.len()];
+    for (idx, line) in lines {
+        let line_no = idx + 1;
+        let mut found = 0;
+        for (j, cell) in line.split(',').enumerate() {
+            found += 1;
+            if j >= names.len() {
+                continue;
+            }
+            let cell = cell.trim();
+            if cell.is_empty() {
+                return Err(DataError::MissingCell {
+                    path: p(),
+                    line: line_no,
+                    column: names[j].clone(),
+                });
+            }
+            let v: f64 = cell.parse().map_err(|_| DataError::NotANumber {
+                path: p(),
+                line: line_no,
+                column: names[j].clone(),
+                cell: cell.to_string(),
+            })?;
+            if !v.is_finite() {
+                return Err(DataError::NotFinite {
+                    path: p(),
+                    line: line_no,
+                    column: names[j].clone(),
+                    cell: cell.to_string(),
+                });
+            }
+            columns[j].push(v);
+        }
+        if found != names.len() {
+            return Err(DataError::RaggedRow {
+                path: p(),
+                line: line_no,
+                expected: names.len(),
+                found,
+            });
+        }
+    }
+    if columns[0].is_empty() {
+        return Err(DataError::Empty { path: p() });
+    }
+    Ok(Record {
+        path: path.to_path_buf(),
+        names,
+        columns,
+    })
+}
+
+impl Record {
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.columns.first().map_or(0, Vec::len)
+    }
+
+    /// True when the record has no rows.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Index of a column, or an error that lists the columns there are.
+    pub fn index(&self, name: &str) -> Result<usize, DataError> {
+        self.names
+            .iter()
+            .position(|n| n == name)
+            .ok_or_else(|| DataError::MissingColumn {
+                path: self.path.clone(),
+                name: name.to_string(),
+                available: self.names.join(", "),
+            })
+    }
+
+    /// A column by name.
+    pub fn column(&self, name: &str) -> Result<&[f64], DataError> {
+        Ok(&self.columns[self.index(name)?])
+    }
+
+    /// The time column: `t`, else the first column whose name starts with `t_` (as `t_s`).
+    pub fn time_column(&self) -> Option<&str> {
+        self.names
+            .iter()
+            .find(|n| n.as_str() == "t")
+            .or_else(|| self.names.iter().find(|n| n.starts_with("t_")))
+            .map(String::as_str)
+    }
+
+    /// The sampling period from the time column, checked to be uniform (1 % of a period).
+    pub fn sampling_period(&self) -> Result<Option<f64>, DataError> {
+        let Some(name) = self.time_column() else {
+            return Ok(None);
+        };
+        let t = self.column(name)?;
+        if t.len() < 2 {
+            return Ok(None);
+        }
+        for k in 1..t.len() {
+            if t[k] <= t[k - 1] {
+                return Err(DataError::TimeNotIncreasing {
+                    path: self.path.clone(),
+                    line: k + 2,
+                    column: name.to_string(),
+                    time: t[k],
+                    previous: t[k - 1],
+                });
+            }
+        }
+        let n = t.len();
+        // median step is robust against a single gap
+        let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+        steps.sort_by(f64::total_cmp);
+        let period = steps[steps.len() / 2];
+        let tol = 0.01 * period;
+        for (k, &tk) in t.iter().enumerate() {
+            let expected = t[0] + k as f64 * period;
+            let deviation = tk - expected;
+            if deviation.abs() > tol + 1e-9 * tk.abs() * (n as f64).sqrt() {
+                return Err(DataError::NonUniformTime {
+                    path: self.path.clone(),
+                    line: k + 2,
+                    column: name.to_string(),
+                    time: tk,
+                    expected,
+                    period,
+                    deviation,
+                });
+            }
+        }
+        // refine with the whole span: more exact than one step
+        Ok(Some((t[n - 1] - t[0]) / (n - 1) as f64))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(s: &str) -> Result<Record, DataError> {
+        parse_csv(Path::new("x.csv"), s)
+    }
+
+    #[test]
+    fn reads_header_and_columns() {
+        let r = parse("t,u,y\n0,1,2\n0.5,3,4\n").unwrap();
+        assert_eq!(r.names, ["t", "u", "y"]);
+        assert_eq!(r.column("y").unwrap(), &[2.0, 4.0]);
+        assert_eq!(r.sampling_period().unwrap(), Some(0.5));
+    }
+
+    #[test]
+    fn errors_name_line_and_column() {
+        let e = parse("t,u\n0,1\n1,abc\n").unwrap_err().to_string();
+        assert!(e.contains("line 3") && e.contains("`u`") && e.contains("abc"), "{e}");
+        let e = parse("t,u\n0,1\n1,\n").unwrap_err().to_string();
+        assert!(e.contains("line 3") && e.contains("missing"), "{e}");
+        let e = parse("t,u\n0,1\n1,NaN\n").unwrap_err().to_string();
+        assert!(e.contains("not finite"), "{e}");
+        let e = parse("t,u\n0,1\n1\n").unwrap_err().to_string();
+        assert!(e.contains("1 cells"), "{e}");
+        let e = parse("t,u\n").unwrap_err().to_string();
+        assert!(e.contains("empty"), "{e}");
+    }
+
+    #[test]
+    fn missing_column_lists_available() {
+        let r = parse("t,u\n0,1\n").unwrap();
+        let e = r.column("y").unwrap_err().to_string();
+        assert!(e.contains("no column `y`") && e.contains("t, u"), "{e}");
+    }
+
+    #[test]
+    fn gap_in_time_is_reported() {
+        let r = parse("t,u\n0,1\n1,1\n2,1\n5,1\n6,1\n").unwrap();
+        let e = r.sampling_period().unwrap_err().to_string();
+        assert!(e.contains("line 5") && e.contains("split"), "{e}");
+    }
+}

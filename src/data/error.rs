@@ -1,0 +1,102 @@
+use std::path::PathBuf;
+
+/// Everything that can be wrong with a record or an output path.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum DataError {
+    #[error("{path}: cannot read: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: the file is empty; a record needs a header row and at least one data row")]
+    Empty { path: PathBuf },
+    #[error("{path}: line 1: the header has an empty column name at position {position}")]
+    EmptyHeaderName { path: PathBuf, position: usize },
+    #[error("{path}: line 1: the column name `{name}` appears twice")]
+    DuplicateColumn { path: PathBuf, name: String },
+    #[error("{path}: line {line}: {found} cells, but the header has {expected} columns")]
+    RaggedRow {
+        path: PathBuf,
+        line: usize,
+        expected: usize,
+        found: usize,
+    },
+    #[error("{path}: line {line}, column `{column}`: `{cell}` is not a number (every cell must be a finite decimal number)")]
+    NotANumber {
+        path: PathBuf,
+        line: usize,
+        column: String,
+        cell: String,
+    },
+    #[error("{path}: line {line}, column `{column}`: missing value (empty cell); fill or remove the row")]
+    MissingCell {
+        path: PathBuf,
+        line: usize,
+        column: String,
+    },
+    #[error("{path}: line {line}, column `{column}`: `{cell}` is not finite (NaN or infinity are not allowed)")]
+    NotFinite {
+        path: PathBuf,
+        line: usize,
+        column: String,
+        cell: String,
+    },
+    #[error("{path}: has no column `{name}`; the columns are: {available}")]
+    MissingColumn {
+        path: PathBuf,
+        name: String,
+        available: String,
+    },
+    #[error("{path}: {what}; the columns are: {available}. Name them with --inputs/--outputs (or --input-columns)")]
+    NoDefaultColumns {
+        path: PathBuf,
+        what: String,
+        available: String,
+    },
+    #[error("{path}: line {line}: time `{column}` = {time} breaks uniform sampling (expected {expected} with period {period} s from the start; deviation {deviation:.3e} s). A record must be uniformly sampled: resample it, or split it at the gap into separate records")]
+    NonUniformTime {
+        path: PathBuf,
+        line: usize,
+        column: String,
+        time: f64,
+        expected: f64,
+        period: f64,
+        deviation: f64,
+    },
+    #[error("{path}: time column `{column}` does not increase (line {line}: {time} after {previous})")]
+    TimeNotIncreasing {
+        path: PathBuf,
+        line: usize,
+        column: String,
+        time: f64,
+        previous: f64,
+    },
+    #[error("{path}: {rows} data rows are too few: {needed} needed ({why})")]
+    TooShort {
+        path: PathBuf,
+        rows: usize,
+        needed: usize,
+        why: String,
+    },
+    #[error("{path}: output `{name}` is constant ({value}); R^2 and the normalised errors are undefined for a constant signal")]
+    ConstantOutput {
+        path: PathBuf,
+        name: String,
+        value: f64,
+    },
+    #[error("{path}: already exists; pass --force to overwrite it")]
+    Exists { path: PathBuf },
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("refusing to write a non-finite value ({value}) in column `{column}`, row {row}, to {path}")]
+    NonFiniteOutput {
+        path: PathBuf,
+        column: String,
+        row: usize,
+        value: f64,
+    },
+}

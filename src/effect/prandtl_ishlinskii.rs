@@ -1,0 +1,261 @@
+//! # Prandtl-Ishlinskii hysteresis
+//!
+//! Classical PI: y(k) = p0 u(k) + sum_i w_i z_{r_i}(k), a weighted superposition of play
+//! operators ([`super::play`]); rate independent and symmetric.
+//! Asymmetric variant (Kuhnen's modified PI): the PI output passes through a memoryless
+//! superposition of one-sided dead zones, S[y] = sum_j c_j S_{d_j}(y) with
+//! S_d(y) = max(y - d, 0) for d > 0, y for d = 0, min(y - d, 0) for d < 0.
+//!
+//! ## References
+//! - K. Kuhnen, Eur. J. Control 9(4):407-418, 2003 (modified PI, dead-zone superposition).
+//! - M. Rakotondrabe, "Classical Prandtl-Ishlinskii modeling and inverse multiplicative structure
+//!   to compensate hysteresis in piezoactuators", ACC 2012.
+//! - M. Al Janaideh, S. Rakheja, C.-Y. Su, IEEE/ASME TMech 16(4):734-744, 2011.
+
+use super::play::play_operator;
+use super::{finite, non_negative, EffectError, Operator};
+use serde::{Deserialize, Serialize};
+
+/// Prandtl-Ishlinskii parameters as written in a plant file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PrandtlIshlinskiiSpec {
+    /// p0: weight of the input itself (the play of threshold 0).
+    pub linear_weight: f64,
+    /// Play thresholds r_i > 0, strictly increasing (input units).
+    pub thresholds: Vec<f64>,
+    /// Play weights w_i (output units per input unit).
+    pub weights: Vec<f64>,
+    /// Initial state of every play (default 0).
+    #[serde(default)]
+    pub initial_state: f64,
+    /// Optional dead-zone superposition for asymmetric loops (Kuhnen).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dead_zones: Option<DeadZoneSpec>,
+}
+
+/// Dead-zone superposition S[y] = sum_j c_j S_{d_j}(y).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DeadZoneSpec {
+    /// d_j, strictly increasing (output units of the PI part).
+    pub thresholds: Vec<f64>,
+    /// c_j.
+    pub weights: Vec<f64>,
+}
+
+/// Valid Prandtl-Ishlinskii parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PrandtlIshlinskii {
+    pub linear_weight: f64,
+    pub thresholds: Vec<f64>,
+    pub weights: Vec<f64>,
+    pub initial_state: f64,
+    pub dead_zones: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+fn increasing(field: &str, v: &[f64], strictly_positive: bool) -> Result<(), EffectError> {
+    for (i, &x) in v.iter().enumerate() {
+        let name = format!("{field}[{i}]");
+        if strictly_positive {
+            non_negative(&name, x)?;
+        } else {
+            finite(&name, x)?;
+        }
+        if i > 0 && x <= v[i - 1] {
+            return Err(EffectError::Invalid {
+                field: name,
+                value: x,
+                rule: format!("thresholds must be strictly increasing (previous is {})", v[i - 1]),
+            });
+        }
+    }
+    Ok(())
+}
+
+impl PrandtlIshlinskiiSpec {
+    /// Check the parameters.
+    pub fn check(&self) -> Result<PrandtlIshlinskii, EffectError> {
+        finite("linear_weight", self.linear_weight)?;
+        finite("initial_state", self.initial_state)?;
+        increasing("thresholds", &self.thresholds, true)?;
+        if self.weights.len() != self.thresholds.len() {
+            return Err(EffectError::Shape {
+                field: "weights".into(),
+                rule: format!(
+                    "has {} entries but `thresholds` has {}; give one weight per threshold",
+                    self.weights.len(),
+                    self.thresholds.len()
+                ),
+            });
+        }
+        for (i, &w) in self.weights.iter().enumerate() {
+            finite(&format!("weights[{i}]"), w)?;
+        }
+        let dead_zones = match &self.dead_zones {
+            None => None,
+            Some(dz) => {
+                increasing("dead_zones.thresholds", &dz.thresholds, false)?;
+                if dz.weights.len() != dz.thresholds.len() {
+                    return Err(EffectError::Shape {
+                        field: "dead_zones.weights".into(),
+                        rule: format!(
+                            "has {} entries but `dead_zones.thresholds` has {}",
+                            dz.weights.len(),
+                            dz.thresholds.len()
+                        ),
+                    });
+                }
+                for (i, &w) in dz.weights.iter().enumerate() {
+                    finite(&format!("dead_zones.weights[{i}]"), w)?;
+                }
+                check_monotone_dead_zones(&dz.thresholds, &dz.weights)?;
+                Some((dz.thresholds.clone(), dz.weights.clone()))
+            }
+        };
+        Ok(PrandtlIshlinskii {
+            linear_weight: self.linear_weight,
+            thresholds: self.thresholds.clone(),
+            weights: self.weights.clone(),
+            initial_state: self.initial_state,
+            dead_zones,
+        })
+    }
+}
+
+/// The dead-zone map must be strictly increasing: its slope is positive on every interval.
+fn check_monotone_dead_zones(d: &[f64], c: &[f64]) -> Result<(), EffectError> {
+    let w0: f64 = d.iter().zip(c).filter(|(d, _)| **d == 0.0).map(|(_, c)| c).sum();
+    let mut slope = w0;
+    for (&dj, &cj) in d.iter().zip(c).filter(|(d, _)| **d > 0.0) {
+        slope += cj;
+        if slope <= 0.0 {
+            return Err(EffectError::Invalid {
+                field: "dead_zones.weights".into(),
+                value: cj,
+                rule: format!("the dead-zone map must increase; its slope above {dj} would be {slope}"),
+            });
+        }
+    }
+    let mut slope = w0;
+    for (&dj, &cj) in d.iter().zip(c).rev().filter(|(d, _)| **d < 0.0) {
+        slope += cj;
+        if slope <= 0.0 {
+            return Err(EffectError::Invalid {
+                field: "dead_zones.weights".into(),
+                value: cj,
+                rule: format!("the dead-zone map must increase; its slope below {dj} would be {slope}"),
+            });
+        }
+    }
+    if w0 <= 0.0 {
+        return Err(EffectError::Invalid {
+            field: "dead_zones.weights".into(),
+            value: w0,
+            rule: "the weight of the zero threshold (the slope around 0) must be > 0".into(),
+        });
+    }
+    Ok(())
+}
+
+/// One dead zone.
+#[inline]
+pub fn dead_zone(y: f64, d: f64) -> f64 {
+    if d > 0.0 {
+        (y - d).max(0.0)
+    } else if d < 0.0 {
+        (y - d).min(0.0)
+    } else {
+        y
+    }
+}
+
+impl PrandtlIshlinskii {
+    /// The operator with every play at its initial state.
+    pub fn operator(&self) -> PrandtlIshlinskiiOp {
+        PrandtlIshlinskiiOp {
+            params: self.clone(),
+            states: vec![self.initial_state; self.thresholds.len()],
+        }
+    }
+}
+
+/// A running Prandtl-Ishlinskii operator.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PrandtlIshlinskiiOp {
+    params: PrandtlIshlinskii,
+    states: Vec<f64>,
+}
+
+impl Operator for PrandtlIshlinskiiOp {
+    fn reset(&mut self) {
+        self.states.fill(self.params.initial_state);
+    }
+
+    #[inline]
+    fn step(&mut self, u: f64) -> f64 {
+        let p = &self.params;
+        let mut y = p.linear_weight * u;
+        for ((z, &r), &w) in self.states.iter_mut().zip(&p.thresholds).zip(&p.weights) {
+            *z = play_operator(u, r, *z);
+            y += w * *z;
+        }
+        match &p.dead_zones {
+            None => y,
+            Some((d, c)) => d.iter().zip(c).map(|(&d, &c)| c * dead_zone(y, d)).sum(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec() -> PrandtlIshlinskiiSpec {
+        PrandtlIshlinskiiSpec {
+            linear_weight: 0.6,
+            thresholds: vec![4.0, 8.0, 12.0],
+            weights: vec![0.1, 0.07, 0.05],
+            initial_state: 0.0,
+            dead_zones: None,
+        }
+    }
+
+    #[test]
+    fn thresholds_must_increase() {
+        let mut s = spec();
+        s.thresholds = vec![4.0, 4.0, 12.0];
+        let e = s.check().unwrap_err().to_string();
+        assert!(e.contains("thresholds[1]") && e.contains("strictly increasing"), "{e}");
+    }
+
+    #[test]
+    fn weights_must_match_thresholds() {
+        let mut s = spec();
+        s.weights.pop();
+        assert!(s.check().unwrap_err().to_string().contains("one weight per threshold"));
+    }
+
+    #[test]
+    fn non_monotone_dead_zones_rejected() {
+        let mut s = spec();
+        s.dead_zones = Some(DeadZoneSpec {
+            thresholds: vec![0.0, 10.0],
+            weights: vec![1.0, -1.5],
+        });
+        assert!(s.check().is_err());
+    }
+
+    #[test]
+    fn dead_zones_make_loops_asymmetric() {
+        let mut s = spec();
+        s.dead_zones = Some(DeadZoneSpec {
+            thresholds: vec![0.0, 10.0],
+            weights: vec![1.0, -0.3],
+        });
+        let u: Vec<f64> = (0..4000).map(|k| 30.0 * (k as f64 * 0.005).sin()).collect();
+        let y = s.check().unwrap().operator().apply(&u);
+        let (max, min) = y.iter().fold((f64::MIN, f64::MAX), |a, &v| (a.0.max(v), a.1.min(v)));
+        assert!(max + min < -1.0, "top is squashed: max {max} min {min}");
+    }
+}
