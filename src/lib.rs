@@ -13,3 +13,4 @@
 pub mod data;
 pub mod effect;
 pub mod metrics;
+pub mod cli;

@@ -225,7 +225,7 @@ mod tests {
 
     /// Fine explicit integration of dh/du for comparison.
     fn euler(p: &BoucWen, u: &[f64], sub: usize) -> Vec<f64> {
-        let mut h = 0.0;
+        let mut h: f64 = 0.0;
         let mut out = vec![p.d * u[0]];
         for w in u.windows(2) {
             let du = (w[1] - w[0]) / sub as f64;
