@@ -5,6 +5,8 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod simulate;
+
 /// Simulate, identify, plot and improve models of hysteretic actuators.
 #[derive(Debug, Parser)]
 #[command(name = "hystbench", version, about, long_about = None)]
@@ -16,11 +18,14 @@ pub struct Cli {
 /// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// Simulate a plant on a scenario or a recorded input and write a record.
+    Simulate(simulate::Args),
 }
 
 /// Run one parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Simulate(a) => simulate::run(a),
     }
 }
 
