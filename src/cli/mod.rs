@@ -5,6 +5,7 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod demo;
 pub mod simulate;
 
 /// Simulate, identify, plot and improve models of hysteretic actuators.
@@ -18,6 +19,8 @@ pub struct Cli {
 /// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// The main job on built-in defaults: simulate the shipped plants and report.
+    Demo(demo::Args),
     /// Simulate a plant on a scenario or a recorded input and write a record.
     Simulate(simulate::Args),
 }
@@ -25,6 +28,7 @@ pub enum Command {
 /// Run one parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Demo(a) => demo::run(a),
         Command::Simulate(a) => simulate::run(a),
     }
 }

@@ -12,6 +12,7 @@
 //! - D. Habineza, M. Rakotondrabe, Y. Le Gorrec, "Bouc-Wen modeling and feedforward control of
 //!   multivariable hysteresis in piezoelectric systems", IEEE TCST, 2015.
 
+pub mod builtin;
 mod chain;
 mod error;
 mod spec;

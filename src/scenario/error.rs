@@ -29,10 +29,4 @@ pub enum ScenarioError {
         field: String,
         detail: String,
     },
-    #[error("{path}: `{field}`: {source}")]
-    InputFile {
-        path: PathBuf,
-        field: String,
-        source: crate::data::DataError,
-    },
 }

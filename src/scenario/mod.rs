@@ -98,7 +98,12 @@ impl ScenarioSpec {
             path: path.to_path_buf(),
             source,
         })?;
-        serde_json::from_str(&text).map_err(|e| json_error(path, e))
+        Self::parse(path, &text)
+    }
+
+    /// Parse scenario JSON; `path` labels the errors.
+    pub fn parse(path: &Path, text: &str) -> Result<ScenarioSpec, ScenarioError> {
+        serde_json::from_str(text).map_err(|e| json_error(path, e))
     }
 
     /// Check; relative CSV inputs are looked up beside `path`.
