@@ -210,7 +210,9 @@ mod loop_tests {
 
     #[test]
     fn memoryless_map_has_no_loop() {
-        let u: Vec<f64> = (0..3000).map(|k| (k as f64 * std::f64::consts::TAU / 1000.0).sin()).collect();
+        let u: Vec<f64> = (0..3000)
+            .map(|k| (k as f64 * std::f64::consts::TAU / 1000.0).sin())
+            .collect();
         let y: Vec<f64> = u.iter().map(|v| 2.0 * v + v * v * v).collect();
         assert!(normalised_loop_area(&u, &y).abs() < 1e-3);
         assert!(branch_gap(&u, &y, 20) < 0.01);

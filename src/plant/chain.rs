@@ -43,6 +43,9 @@ impl OutputChain {
                 .map_err(|e| effect_err(plant, format!("outputs[{o}].dynamics"), e))?;
             acc = op.apply(&acc);
         }
+        if self.offset != 0.0 {
+            acc.iter_mut().for_each(|v| *v += self.offset);
+        }
         if let Some((sample, &value)) = acc.iter().enumerate().find(|(_, v)| !v.is_finite()) {
             return Err(PlantError::Diverged {
                 output: self.name.clone(),

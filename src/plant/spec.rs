@@ -29,12 +29,20 @@ pub struct PathSpec {
     pub dynamics: Option<DynamicsSpec>,
 }
 
-/// One output: the sum of its paths, then creep, then dynamics.
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+
+/// One output: the sum of its paths, then creep, then dynamics, plus a constant offset
+/// (a sensor's zero).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OutputSpec {
     pub name: String,
     pub paths: Vec<PathSpec>,
+    /// Added to the output (output units; default 0).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub offset: f64,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub creep: Option<CreepSpec>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -74,6 +82,7 @@ pub struct PathParams {
 pub struct OutputChain {
     pub name: String,
     pub paths: Vec<PathParams>,
+    pub offset: f64,
     pub creep: Option<Creep>,
     pub dynamics: Option<Dynamics>,
 }
@@ -222,9 +231,16 @@ impl PlantSpec {
                             format!("`{}` is repeated", out.name),
                         ));
                     }
+                    if !out.offset.is_finite() {
+                        return Err(structure(
+                            &format!("{at}.offset"),
+                            format!("{} must be a finite number", out.offset),
+                        ));
+                    }
                     chains.push(OutputChain {
                         name: out.name.clone(),
                         paths,
+                        offset: out.offset,
                         creep,
                         dynamics,
                     });
