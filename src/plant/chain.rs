@@ -13,6 +13,7 @@ fn effect_err(plant: &Plant, field: String, source: EffectError) -> PlantError {
 
 impl OutputChain {
     /// Noise-free response of this output to the plant's inputs (`o` is its index, for errors).
+    /// One fused pass per sample: paths, sum, creep, dynamics.
     pub fn simulate(
         &self,
         plant: &Plant,
@@ -21,39 +22,49 @@ impl OutputChain {
         ts: f64,
     ) -> Result<Vec<f64>, PlantError> {
         let n = inputs[0].len();
-        let mut acc = vec![0.0; n];
+        let mut paths = Vec::with_capacity(self.paths.len());
         for (k, path) in self.paths.iter().enumerate() {
-            let mut w = path.hysteresis.operator().apply(inputs[path.input]);
-            if let Some(d) = &path.dynamics {
-                let mut op = d.operator(ts).map_err(|e| {
-                    effect_err(plant, format!("outputs[{o}].paths[{k}].dynamics"), e)
-                })?;
-                w = op.apply(&w);
+            let dynamics = path
+                .dynamics
+                .as_ref()
+                .map(|d| d.operator(ts))
+                .transpose()
+                .map_err(|e| effect_err(plant, format!("outputs[{o}].paths[{k}].dynamics"), e))?;
+            paths.push((inputs[path.input], path.hysteresis.operator(), dynamics));
+        }
+        let mut creep = self.creep.as_ref().map(|c| c.operator(ts));
+        let mut dynamics = self
+            .dynamics
+            .as_ref()
+            .map(|d| d.operator(ts))
+            .transpose()
+            .map_err(|e| effect_err(plant, format!("outputs[{o}].dynamics"), e))?;
+        let mut out = Vec::with_capacity(n);
+        for k in 0..n {
+            let mut w = 0.0;
+            for (u, h, d) in paths.iter_mut() {
+                let v = h.step(u[k]);
+                w += match d {
+                    Some(d) => d.step(v),
+                    None => v,
+                };
             }
-            for (a, v) in acc.iter_mut().zip(&w) {
-                *a += v;
+            if let Some(c) = creep.as_mut() {
+                w = c.step(w);
             }
+            if let Some(d) = dynamics.as_mut() {
+                w = d.step(w);
+            }
+            out.push(w + self.offset);
         }
-        if let Some(c) = &self.creep {
-            acc = c.operator(ts).apply(&acc);
-        }
-        if let Some(d) = &self.dynamics {
-            let mut op = d
-                .operator(ts)
-                .map_err(|e| effect_err(plant, format!("outputs[{o}].dynamics"), e))?;
-            acc = op.apply(&acc);
-        }
-        if self.offset != 0.0 {
-            acc.iter_mut().for_each(|v| *v += self.offset);
-        }
-        if let Some((sample, &value)) = acc.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        if let Some((sample, &value)) = out.iter().enumerate().find(|(_, v)| !v.is_finite()) {
             return Err(PlantError::Diverged {
                 output: self.name.clone(),
                 sample,
                 value,
             });
         }
-        Ok(acc)
+        Ok(out)
     }
 }
 
