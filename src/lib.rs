@@ -12,6 +12,7 @@
 
 pub mod cli;
 pub mod data;
+pub mod diagnose;
 pub mod effect;
 pub mod metrics;
 pub mod plant;
