@@ -15,6 +15,7 @@ pub mod data;
 pub mod diagnose;
 pub mod effect;
 pub mod metrics;
+pub mod model;
 pub mod plant;
 pub mod scenario;
 pub mod simulator;

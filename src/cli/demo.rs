@@ -11,7 +11,7 @@ use anyhow::Context;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-const MARKER: &str = ".hystbench-demo";
+const MARKER: &str = ".hystbench-report";
 
 /// Run the whole story on built-in defaults and write a report folder.
 #[derive(Debug, clap::Args)]
@@ -25,7 +25,7 @@ pub struct Args {
 }
 
 /// Make the report folder, refusing a folder of the user's unless forced.
-pub fn prepare_folder(dir: &Path, force: bool) -> anyhow::Result<()> {
+pub fn prepare_report_folder(dir: &Path, force: bool) -> anyhow::Result<()> {
     if dir.exists() {
         let ours = dir.join(MARKER).exists();
         let empty = std::fs::read_dir(dir)
@@ -33,21 +33,21 @@ pub fn prepare_folder(dir: &Path, force: bool) -> anyhow::Result<()> {
             .unwrap_or(false);
         if !ours && !empty && !force {
             anyhow::bail!(
-                "{}: exists and was not made by `hystbench demo`; choose another --out or pass --force",
+                "{}: exists and was not made by hystbench; choose another folder or pass --force",
                 dir.display()
             );
         }
     } else {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot make {}", dir.display()))?;
     }
-    std::fs::write(dir.join(MARKER), "made by hystbench demo\n")
+    std::fs::write(dir.join(MARKER), "made by hystbench\n")
         .with_context(|| format!("cannot write in {}", dir.display()))?;
     Ok(())
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
-    prepare_folder(&a.out, a.force)?;
+    prepare_report_folder(&a.out, a.force)?;
     let records = a.out.join("records");
     std::fs::create_dir_all(&records)?;
     let mut md =

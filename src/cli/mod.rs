@@ -5,7 +5,9 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod compare;
 pub mod demo;
+pub mod diagnose;
 pub mod simulate;
 
 /// Simulate, identify, plot and improve models of hysteretic actuators.
@@ -19,6 +21,10 @@ pub struct Cli {
 /// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// Compare a model with a record: scores and where it fails.
+    Compare(compare::Args),
+    /// Which physical effect does the model miss?
+    Diagnose(diagnose::Args),
     /// The main job on built-in defaults: simulate the shipped plants and report.
     Demo(demo::Args),
     /// Simulate a plant on a scenario or a recorded input and write a record.
@@ -28,7 +34,9 @@ pub enum Command {
 /// Run one parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Compare(a) => compare::run(a),
         Command::Demo(a) => demo::run(a),
+        Command::Diagnose(a) => diagnose::run(a),
         Command::Simulate(a) => simulate::run(a),
     }
 }
