@@ -1,0 +1,119 @@
+//! External ground truth for the Bouc-Wen benchmark plant (Noël & Schoukens, 2016): the
+//! simulator driven by the official test inputs reproduces the official noiseless outputs.
+//!
+//! Data: tests/data/boucwen_test_{multisine,sinesweep}.csv (see tests/data/README.md).
+//! Run with `cargo test --release --test ode_benchmark -- --nocapture` to see the RMS errors.
+
+use hystbench::data::read_csv;
+use hystbench::plant::ode::bouc_wen_benchmark::IntegratorKind;
+use hystbench::plant::ode::{BoucWenBenchmarkSpec, InputInterpolation};
+use std::path::Path;
+
+/// (u, y, ts) of a test file.
+fn load(name: &str) -> (Vec<f64>, Vec<f64>, f64) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name);
+    let rec = read_csv(&path).expect("test data present");
+    let u = rec.column("u_N").unwrap().to_vec();
+    let y = rec.column("y_m").unwrap().to_vec();
+    let t = rec.column("t_s").unwrap();
+    let ts = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    assert!((ts - 1.0 / 750.0).abs() < 1e-12);
+    (u, y, 1.0 / 750.0)
+}
+
+fn rms_error(a: &[f64], b: &[f64]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    (a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>() / a.len() as f64).sqrt()
+}
+
+fn plant_from_shipped_spec() -> BoucWenBenchmarkSpec {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("plants/bouc_wen_benchmark.json");
+    let text = std::fs::read_to_string(path).expect("plants/bouc_wen_benchmark.json");
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    serde_json::from_value(v["ode"]["bouc_wen_benchmark"].clone()).expect("valid spec")
+}
+
+fn run(spec: &BoucWenBenchmarkSpec, file: &str, periodic: bool) -> (f64, f64) {
+    let (u, y_ref, ts) = load(file);
+    let plant = spec.check().unwrap();
+    let t = std::time::Instant::now();
+    let y = plant.simulate(&u, ts, periodic).unwrap();
+    let secs = t.elapsed().as_secs_f64();
+    let e = rms_error(&y, &y_ref);
+    let rms_ref = rms_error(&y_ref, &vec![0.0; y_ref.len()]);
+    println!(
+        "{file}: {:?}/{:?} rtol {:e} x{}: RMS error {e:.3e} m (output RMS {rms_ref:.3e} m), {secs:.2} s",
+        spec.integrator, spec.input_interpolation, spec.rtol, spec.oversampling
+    );
+    (e, rms_ref)
+}
+
+#[test]
+fn multisine_periodic_steady_state_matches_official_output() {
+    let spec = plant_from_shipped_spec();
+    let (e, rms_ref) = run(&spec, "boucwen_test_multisine.csv", true);
+    assert!(rms_ref > 6e-4 && rms_ref < 7e-4);
+    assert!(e <= 2e-6, "multisine RMS error {e:e} m > 2e-6 m");
+}
+
+#[test]
+fn sine_sweep_from_rest_matches_official_output() {
+    let spec = plant_from_shipped_spec();
+    let (e, rms_ref) = run(&spec, "boucwen_test_sinesweep.csv", false);
+    assert!(rms_ref > 6e-4 && rms_ref < 7e-4);
+    assert!(e <= 5e-6, "sweep RMS error {e:e} m > 5e-6 m");
+}
+
+/// Exploration of the options (not an acceptance test):
+/// `cargo test --release --test ode_benchmark -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn option_survey() {
+    let base = BoucWenBenchmarkSpec::default();
+    for (integrator, interp, rtol, os) in [
+        (
+            IntegratorKind::Dopri5,
+            InputInterpolation::Bandlimited,
+            1e-8,
+            20,
+        ),
+        (
+            IntegratorKind::Dopri5,
+            InputInterpolation::Bandlimited,
+            1e-10,
+            20,
+        ),
+        (
+            IntegratorKind::Rk4,
+            InputInterpolation::Bandlimited,
+            1e-8,
+            20,
+        ),
+        (
+            IntegratorKind::Rk4,
+            InputInterpolation::Bandlimited,
+            1e-8,
+            10,
+        ),
+        (
+            IntegratorKind::Rk4,
+            InputInterpolation::Bandlimited,
+            1e-8,
+            5,
+        ),
+        (IntegratorKind::Rk4, InputInterpolation::Linear, 1e-8, 20),
+        (IntegratorKind::Rk4, InputInterpolation::Zoh, 1e-8, 20),
+    ] {
+        let spec = BoucWenBenchmarkSpec {
+            integrator,
+            input_interpolation: interp,
+            rtol,
+            oversampling: os,
+            ..base.clone()
+        };
+        run(&spec, "boucwen_test_multisine.csv", true);
+        run(&spec, "boucwen_test_sinesweep.csv", false);
+    }
+}
