@@ -265,6 +265,16 @@ impl BoucWenBenchmark {
     /// periodic input: the plant runs until the transient has died (40 time constants 2m/c,
     /// at least one period) and the last, steady-state period is returned.
     pub fn simulate(&self, u: &[f64], ts: f64, periodic: bool) -> Result<Vec<f64>, OdeError> {
+        self.simulate_counted(u, ts, periodic).map(|(y, _)| y)
+    }
+
+    /// [`simulate`](Self::simulate), also returning the number of right-hand-side evaluations.
+    pub fn simulate_counted(
+        &self,
+        u: &[f64],
+        ts: f64,
+        periodic: bool,
+    ) -> Result<(Vec<f64>, u64), OdeError> {
         let input = SampledInput::new(u, ts, periodic, self.spec.input_interpolation)?;
         match self.spec.integrator {
             IntegratorKind::Rk4 => self.run(
@@ -317,13 +327,13 @@ impl BoucWenBenchmark {
         u: &[f64],
         periodic: bool,
         mut integrator: I,
-    ) -> Result<Vec<f64>, OdeError> {
+    ) -> Result<(Vec<f64>, u64), OdeError> {
         let n = u.len();
         let ts = input.ts();
         let y_static = self.static_deflection(u);
         if y_static == 0.0 {
             // At rest with no force: it stays at rest.
-            return Ok(vec![0.0; n]);
+            return Ok((vec![0.0; n], 0));
         }
         let limit = GUARD_STATIC_DEFLECTIONS * y_static;
         let kappa = self.kappa_eff();
@@ -367,7 +377,7 @@ impl BoucWenBenchmark {
             }
         }
         debug_assert_eq!(out.len(), n);
-        Ok(out)
+        Ok((out, integrator.evaluations()))
     }
 }
 

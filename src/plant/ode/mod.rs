@@ -215,9 +215,13 @@ impl SampledInput {
     #[inline]
     pub fn at(&self, t: f64) -> f64 {
         let s = t * self.rate;
-        let jf = s.floor();
-        let f = s - jf;
-        let i = self.slot(jf as i64);
+        // floor without a libm call (baseline x86-64 has no rounding instruction).
+        let mut j = s as i64;
+        if (j as f64) > s {
+            j -= 1;
+        }
+        let f = s - j as f64;
+        let i = self.slot(j);
         match self.kind {
             InputInterpolation::Zoh => self.grid[i],
             InputInterpolation::Linear => {
