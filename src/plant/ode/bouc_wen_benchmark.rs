@@ -506,6 +506,85 @@ mod tests {
         }
     }
 
+    fn two_tones(n: usize, ts: f64) -> Vec<f64> {
+        let period = n as f64 * ts;
+        (0..n)
+            .map(|k| {
+                let t = k as f64 * ts;
+                let w = 2.0 * std::f64::consts::PI / period;
+                30.0 * (3.0 * w * t).sin() + 20.0 * (35.0 * w * t + 0.4).cos()
+            })
+            .collect()
+    }
+
+    /// The periodic mode returns the steady state: the last period of a long run from rest on
+    /// the repeated input.
+    #[test]
+    fn periodic_mode_is_the_steady_state_of_the_repeated_input() {
+        let ts = 1.0 / 750.0;
+        let n = 750;
+        let plant = BoucWenBenchmarkSpec {
+            integrator: IntegratorKind::Rk4,
+            oversampling: 4,
+            input_interpolation: InputInterpolation::Linear,
+            ..spec()
+        }
+        .check()
+        .unwrap();
+        let u = two_tones(n, ts);
+        let periods = plant.warmup_periods(n, ts) + 1;
+        assert_eq!(periods, 17, "40 time constants of 0.4 s, 1 s periods");
+        let y = plant.simulate(&u, ts, true).unwrap();
+        let repeated: Vec<f64> = u.iter().cycle().take(periods * n + 1).cloned().collect();
+        let long = plant.simulate(&repeated, ts, false).unwrap();
+        let last = &long[(periods - 1) * n..periods * n];
+        let diff = y
+            .iter()
+            .zip(last)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        let max_y = y.iter().fold(0.0f64, |m, a| m.max(a.abs()));
+        assert!(max_y > 1e-4, "{max_y}");
+        assert!(diff < 1e-12 * 1e3 * max_y, "{diff}");
+        // And it is periodic: the period before is the same to the decay of the transient.
+        let before = &long[(periods - 2) * n..(periods - 1) * n];
+        let drift = before
+            .iter()
+            .zip(last)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(drift < 1e-9 * max_y, "{drift}");
+    }
+
+    /// The general-exponent branch agrees with the nu = 1 branch at nu -> 1.
+    #[test]
+    fn general_exponent_is_continuous_at_one() {
+        let ts = 1.0 / 750.0;
+        let u = two_tones(1500, ts);
+        let run = |nu: f64| {
+            BoucWenBenchmarkSpec {
+                integrator: IntegratorKind::Rk4,
+                oversampling: 10,
+                nu,
+                ..spec()
+            }
+            .check()
+            .unwrap()
+            .simulate(&u, ts, false)
+            .unwrap()
+        };
+        let (a, b, c) = (run(1.0), run(1.0 + 1e-9), run(1.5));
+        let max_y = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let d_ab = a
+            .iter()
+            .zip(&b)
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        let d_ac = a
+            .iter()
+            .zip(&c)
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        assert!(d_ab < 1e-6 * max_y, "{d_ab}");
+        assert!(d_ac > 1e-3 * max_y, "nu must matter: {d_ac}");
+    }
+
     #[test]
     fn zero_input_stays_at_rest() {
         let plant = spec().check().unwrap();

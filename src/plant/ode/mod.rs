@@ -469,6 +469,20 @@ mod tests {
         assert!((end - f(1998.5 * ts)).abs() < 40.0 * 1e-2, "end {end}");
     }
 
+    /// A period that is not a power of two goes through the wrapped windowed sinc.
+    #[test]
+    fn periodic_bandlimited_without_power_of_two_length() {
+        let n = 60;
+        let ts = 0.01;
+        let f = |t: f64| (2.0 * std::f64::consts::PI * 4.0 * t / (n as f64 * ts)).sin();
+        let u: Vec<f64> = (0..n).map(|k| f(k as f64 * ts)).collect();
+        let inp = SampledInput::new(&u, ts, true, InputInterpolation::Bandlimited).unwrap();
+        let worst = (0..(2 * n * 7))
+            .map(|i| i as f64 * ts / 7.0)
+            .fold(0.0f64, |m, t| m.max((inp.at(t) - f(t)).abs()));
+        assert!(worst < 1e-4, "worst {worst}");
+    }
+
     #[test]
     fn linear_and_zoh() {
         let u = [0.0, 1.0, 3.0];
