@@ -43,7 +43,7 @@ fn main() {
     let secs = t.elapsed().as_secs_f64() / reps as f64;
     println!(
         "{:<34} {:>9.4} {:>12.3e} {:>12} {:>12} {:>10}",
-        "input only (band-limited, 8x grid)",
+        "input only (band-limited)",
         secs,
         n as f64 / secs,
         "-",

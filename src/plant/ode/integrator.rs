@@ -63,7 +63,7 @@ impl Rk4Integrator {
 }
 
 impl<const N: usize> Integrator<N> for Rk4Integrator {
-    #[inline]
+    #[inline(always)]
     fn advance<S: DrivenOde<N>>(
         &mut self,
         ode: &S,
