@@ -178,6 +178,8 @@ pub struct BoucWenBenchmark {
 pub const PERIODIC_SETTLE_TIME_CONSTANTS: f64 = 40.0;
 /// Warm-up periods of a periodic run when c = 0 (no linear decay rate to go by).
 pub const PERIODIC_WARMUP_UNDAMPED: usize = 10;
+/// Longest warm-up of a periodic run, in samples.
+pub const MAX_WARMUP_SAMPLES: usize = 100_000_000;
 /// The amplitude guard: |y| may reach this many static deflections max|u| / (k + alpha).
 pub const GUARD_STATIC_DEFLECTIONS: f64 = 1e4;
 
@@ -263,7 +265,8 @@ impl BoucWenBenchmark {
     /// Simulates the plant from rest for the input `u` sampled every `ts` seconds and returns
     /// y at the sample times (y[0] = 0 at rest). With `periodic`, `u` is one period of a
     /// periodic input: the plant runs until the transient has died (40 time constants 2m/c,
-    /// at least one period) and the last, steady-state period is returned.
+    /// at least one period; 10 periods when c = 0) and the last, steady-state period is
+    /// returned.
     pub fn simulate(&self, u: &[f64], ts: f64, periodic: bool) -> Result<Vec<f64>, OdeError> {
         self.simulate_counted(u, ts, periodic).map(|(y, _)| y)
     }
@@ -315,7 +318,8 @@ impl BoucWenBenchmark {
         if self.spec.damping_ns_per_m > 0.0 {
             let settle = PERIODIC_SETTLE_TIME_CONSTANTS * 2.0 * self.spec.mass_kg
                 / self.spec.damping_ns_per_m;
-            ((settle / period).ceil() as usize).clamp(1, 1000)
+            // `as` saturates, so a vanishing damping gives a huge count, refused in `run`.
+            ((settle / period).ceil() as usize).max(1)
         } else {
             PERIODIC_WARMUP_UNDAMPED
         }
@@ -341,6 +345,13 @@ impl BoucWenBenchmark {
         let w = rhs.w;
         let (warmup, total_samples) = if periodic {
             let p = self.warmup_periods(n, ts);
+            if p.saturating_mul(n) > MAX_WARMUP_SAMPLES {
+                return Err(OdeError::SettlingTooLong {
+                    time_constant: 2.0 * self.spec.mass_kg / self.spec.damping_ns_per_m,
+                    samples: p.saturating_mul(n),
+                    limit: MAX_WARMUP_SAMPLES,
+                });
+            }
             (p * n, (p + 1) * n)
         } else {
             (0, n)
@@ -583,6 +594,21 @@ mod tests {
             .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
         assert!(d_ab < 1e-6 * max_y, "{d_ab}");
         assert!(d_ac > 1e-3 * max_y, "nu must matter: {d_ac}");
+    }
+
+    #[test]
+    fn periodic_run_refuses_an_endless_transient() {
+        let plant = BoucWenBenchmarkSpec {
+            damping_ns_per_m: 1e-9,
+            ..spec()
+        }
+        .check()
+        .unwrap();
+        let e = plant
+            .simulate(&[1.0, -1.0, 0.5, 0.0], 0.01, true)
+            .unwrap_err();
+        assert!(matches!(e, OdeError::SettlingTooLong { .. }), "{e}");
+        assert!(e.to_string().contains("time constant"), "{e}");
     }
 
     #[test]

@@ -69,6 +69,17 @@ pub enum OdeError {
         state: Vec<f64>,
         limit: f64,
     },
+    /// A periodic run would need too long a warm-up for its transient to die.
+    #[error(
+        "a periodic run needs {samples} warm-up samples (damping time constant 2m/c = \
+         {time_constant} s), more than the limit of {limit}; simulate it as a non-periodic \
+         input or increase the damping"
+    )]
+    SettlingTooLong {
+        time_constant: f64,
+        samples: usize,
+        limit: usize,
+    },
     /// The ODE solver gave up.
     #[error(
         "the integrator failed in the interval ending at sample {sample} (t = {time} s): {message}"
