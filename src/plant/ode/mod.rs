@@ -91,6 +91,21 @@ pub enum OdeError {
     },
 }
 
+impl OdeError {
+    /// The same error with `prefix.` in front of a field name (to give the path in a plant
+    /// file, e.g. `ode.bouc_wen_benchmark`).
+    pub fn within(self, prefix: &str) -> OdeError {
+        match self {
+            OdeError::Invalid { field, value, rule } => OdeError::Invalid {
+                field: format!("{prefix}.{field}"),
+                value,
+                rule,
+            },
+            e => e,
+        }
+    }
+}
+
 pub(crate) fn invalid(field: &str, value: f64, rule: &str) -> OdeError {
     OdeError::Invalid {
         field: field.to_string(),
@@ -505,6 +520,26 @@ mod tests {
         assert_eq!(zoh.at(0.49), 0.0);
         assert_eq!(zoh.at(0.5), 1.0);
         assert_eq!(zoh.at(0.9), 1.0);
+    }
+
+    #[test]
+    fn public_types_are_send_sync_clone() {
+        fn check<T: Send + Sync + Clone>() {}
+        check::<SampledInput>();
+        check::<OdeError>();
+        check::<BoucWenBenchmarkSpec>();
+        check::<BoucWenBenchmark>();
+        check::<Rk4Integrator>();
+        check::<Dopri5Integrator>();
+    }
+
+    #[test]
+    fn error_path_prefix() {
+        let e = invalid("nu", 0.5, "must be >= 1").within("ode.bouc_wen_benchmark");
+        assert_eq!(
+            e.to_string(),
+            "`ode.bouc_wen_benchmark.nu` = 0.5: must be >= 1"
+        );
     }
 
     #[test]
