@@ -10,8 +10,8 @@
 //! - [`data`]: records, CSV in and out, atomic writes;
 //! - [`metrics`]: R^2, RMSE, NRMSE / fit %, max error.
 
-pub mod cli;
 pub mod data;
 pub mod effect;
 pub mod metrics;
 pub mod plant;
+pub mod cli;
