@@ -16,9 +16,10 @@
 //!
 //! Paths: the default, `"integrator": "dopri5"` (rtol 1e-8), is the reference. The fast path
 //! is `"integrator": "rk4"` with `"oversampling": 10`: on the official records it gives the
-//! same errors against the official outputs and stays within 3e-7 m of Dopri5 at rtol 1e-10
-//! (the |y'| and |z| kinks make RK4 about second order here; `tests/ode_benchmark.rs` checks
-//! it), at over a million output samples per second (`cargo bench --bench ode`).
+//! same errors against the official outputs and stays within 4e-7 m (2e-4 of the largest |y|)
+//! of Dopri5 at rtol 1e-11 (measured: 2.6e-7 m on the multisine, 3.9e-7 m on the whole sweep;
+//! the |y'| and |z| kinks make RK4 about second order here; `tests/ode_benchmark.rs` checks
+//! it), at about a million output samples per second or more (`cargo bench --bench ode`).
 //!
 //! ```
 //! use hystbench::plant::ode::BoucWenBenchmarkSpec;
