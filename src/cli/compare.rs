@@ -28,13 +28,19 @@ pub struct Args {
 }
 
 /// Load, select and predict: the common start of compare, diagnose and improve.
-pub fn predict_record(data: &std::path::Path, model: &dyn Model) -> anyhow::Result<(IoRecord, Vec<Vec<f64>>)> {
+pub fn predict_record(
+    data: &std::path::Path,
+    model: &dyn Model,
+) -> anyhow::Result<(IoRecord, Vec<Vec<f64>>)> {
     let rec = read_csv(data)?;
     let io = model.select(&rec)?;
     let pred = model.predict(&io)?;
     for (p, name) in pred.iter().zip(io.output_names()) {
         if let Some(k) = p.iter().position(|v| !v.is_finite()) {
-            anyhow::bail!("{}: the prediction of `{name}` diverged at sample {k}", model.describe());
+            anyhow::bail!(
+                "{}: the prediction of `{name}` diverged at sample {k}",
+                model.describe()
+            );
         }
     }
     Ok((io, pred))
@@ -53,13 +59,23 @@ pub fn markdown(model: &dyn Model, data: &std::path::Path, cmp: &[OutputComparis
             sc.r2.map_or("undefined".into(), |v| format!("{v:.5}")),
             sc.rmse,
             sc.nrmse.map_or("undefined".into(), |v| format!("{v:.4}")),
-            sc.fit_percent.map_or("undefined".into(), |v| format!("{v:.2}")),
+            sc.fit_percent
+                .map_or("undefined".into(), |v| format!("{v:.2}")),
             sc.max_error,
             sc.n
         );
-        let _ = writeln!(s, "Residual-against-{} loop area: {:.4} (0 for a model with the right memory).\n", c.input, c.residual_loop_area);
+        let _ = writeln!(
+            s,
+            "Residual-against-{} loop area: {:.4} (0 for a model with the right memory).\n",
+            c.input, c.residual_loop_area
+        );
         let _ = writeln!(s, "| where | samples | RMS error [{u}] |\n|---|---|---|");
-        for sl in c.by_direction.iter().chain(&c.by_amplitude).chain(&c.by_motion) {
+        for sl in c
+            .by_direction
+            .iter()
+            .chain(&c.by_amplitude)
+            .chain(&c.by_motion)
+        {
             if sl.samples > 0 {
                 let _ = writeln!(s, "| {} | {} | {:.4} |", sl.label, sl.samples, sl.rms);
             }
@@ -70,7 +86,11 @@ pub fn markdown(model: &dyn Model, data: &std::path::Path, cmp: &[OutputComparis
         }
         let _ = writeln!(s, "\nWorst windows:\n");
         for w in &c.worst_windows {
-            let _ = writeln!(s, "- {:.3} s to {:.3} s: RMS {:.4} {u}", w.start_s, w.end_s, w.rms);
+            let _ = writeln!(
+                s,
+                "- {:.3} s to {:.3} s: RMS {:.4} {u}",
+                w.start_s, w.end_s, w.rms
+            );
         }
         s.push('\n');
     }
@@ -96,7 +116,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         eprintln!("report: {}", dir.join("report.md").display());
     }
     if a.json {
-        println!("{}", serde_json::to_string(&serde_json::json!({ "outputs": cmp }))?);
+        println!(
+            "{}",
+            serde_json::to_string(&serde_json::json!({ "outputs": cmp }))?
+        );
     } else {
         println!("{md}");
     }

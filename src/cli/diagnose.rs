@@ -27,7 +27,13 @@ pub fn text(d: &Diagnosis) -> String {
         for m in &od.messages {
             s += &format!("  - {m}\n");
         }
-        let sig: Vec<&str> = od.whiteness.tests.iter().filter(|t| t.significant).map(|t| t.name.as_str()).collect();
+        let sig: Vec<&str> = od
+            .whiteness
+            .tests
+            .iter()
+            .filter(|t| t.significant)
+            .map(|t| t.name.as_str())
+            .collect();
         s += &if sig.is_empty() {
             "  residual: white and uncorrelated with the inputs\n".to_string()
         } else {
@@ -36,11 +42,16 @@ pub fn text(d: &Diagnosis) -> String {
     }
     s += "ranking (share of the residual explained out of sample):\n";
     for r in &d.ranking {
-        s += &format!("  {:<11} {:>6.1} %\n", r.effect.as_str(), 100.0 * r.explained.max(0.0));
+        s += &format!(
+            "  {:<11} {:>6.1} %\n",
+            r.effect.as_str(),
+            100.0 * r.explained.max(0.0)
+        );
     }
     s += &format!(
         "missing: {}\n",
-        d.missing.map_or("nothing significant".to_string(), |m| m.to_string())
+        d.missing
+            .map_or("nothing significant".to_string(), |m| m.to_string())
     );
     for line in &d.summary {
         s += &format!("{line}\n");

@@ -170,7 +170,6 @@ impl Operator for CreepOp {
     }
 }
 
-
 /// One Kelvin-Voigt state (a first-order lag of time constant `tau`, exact under a zero-order
 /// hold, starting at the first sample's value).
 pub fn kelvin_voigt_state(x: &[f64], tau: f64, ts: f64) -> Vec<f64> {

@@ -150,7 +150,6 @@ impl Operator for DynamicsOp {
     }
 }
 
-
 /// Basis bank: the model's prediction passed through lightly damped second-order resonators
 /// (natural frequencies log-spaced by 1.3 from max(1 Hz, 50 / record span) to 0.35 / Ts,
 /// damping 0.1; each with its one-sample delay, which spans the filter's two states), and a few

@@ -33,4 +33,10 @@ pub const BUILTIN: &[(&str, &str, &str, &str)] = &[
         "seed_2dof.json",
         include_str!("../../scenarios/seed_2dof.json"),
     ),
+    (
+        "bouc_wen_benchmark.json",
+        include_str!("../../plants/bouc_wen_benchmark.json"),
+        "boucwen_multisine.json",
+        include_str!("../../scenarios/boucwen_multisine.json"),
+    ),
 ];

@@ -1,6 +1,6 @@
 //! Simulation of chain plants: paths -> sum -> creep -> dynamics, per output.
 
-use super::{OutputChain, Plant, PlantError, PlantKind};
+use super::{OdePlant, OutputChain, Plant, PlantError, PlantKind};
 use crate::effect::{EffectError, Operator};
 
 fn effect_err(plant: &Plant, field: String, source: EffectError) -> PlantError {
@@ -85,6 +85,9 @@ impl Plant {
                 .enumerate()
                 .map(|(o, c)| c.simulate(self, o, inputs, ts))
                 .collect(),
+            PlantKind::Ode(OdePlant::BoucWenBenchmark(p)) => Ok(vec![p
+                .simulate(inputs[0], ts, false)
+                .map_err(|e| PlantError::Ode(e.to_string()))?]),
         }
     }
 

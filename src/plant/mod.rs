@@ -15,7 +15,11 @@
 pub mod builtin;
 mod chain;
 mod error;
+pub mod ode;
 mod spec;
 
 pub use error::PlantError;
-pub use spec::{OutputChain, OutputSpec, PathParams, PathSpec, Plant, PlantKind, PlantSpec, Units};
+pub use spec::{
+    OdePlant, OdeSpec, OutputChain, OutputSpec, PathParams, PathSpec, Plant, PlantKind, PlantSpec,
+    Units,
+};

@@ -67,6 +67,23 @@ pub struct PlantSpec {
     /// Outputs of a chain plant.
     #[serde(default)]
     pub outputs: Vec<OutputSpec>,
+    /// An ODE plant instead of a chain.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ode: Option<OdeSpec>,
+}
+
+/// The ODE plants, by name.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum OdeSpec {
+    /// Noel & Schoukens' Bouc-Wen benchmark system (`src/plant/ode/`).
+    BoucWenBenchmark(super::ode::BoucWenBenchmarkSpec),
+}
+
+/// A valid ODE plant.
+#[derive(Debug, Clone, PartialEq)]
+pub enum OdePlant {
+    BoucWenBenchmark(super::ode::BoucWenBenchmark),
 }
 
 /// A valid path.
@@ -92,6 +109,8 @@ pub struct OutputChain {
 pub enum PlantKind {
     /// hysteresis paths -> creep -> dynamics, per output.
     Chain(Vec<OutputChain>),
+    /// An ODE plant with one input and one output.
+    Ode(OdePlant),
 }
 
 /// A valid plant: only this reaches the simulator.
@@ -166,11 +185,32 @@ impl PlantSpec {
                 ));
             }
         }
-        if self.outputs.is_empty() {
-            return Err(structure("outputs", "needs at least one output".into()));
-        }
-        let kind = match () {
-            () => {
+        let kind = match (&self.ode, self.outputs.is_empty()) {
+            (Some(_), false) => {
+                return Err(structure(
+                    "ode",
+                    "a plant is either a chain (`outputs`) or an ODE (`ode`), not both".into(),
+                ))
+            }
+            (None, true) => {
+                return Err(structure(
+                    "outputs",
+                    "needs at least one output (or an `ode`)".into(),
+                ))
+            }
+            (Some(OdeSpec::BoucWenBenchmark(ode)), true) => {
+                if self.inputs.len() != 1 {
+                    return Err(structure(
+                        "inputs",
+                        "the ODE plant has exactly one input".into(),
+                    ));
+                }
+                PlantKind::Ode(OdePlant::BoucWenBenchmark(
+                    ode.check()
+                        .map_err(|e| structure("ode.bouc_wen_benchmark", e.to_string()))?,
+                ))
+            }
+            (None, false) => {
                 let mut chains = Vec::new();
                 for (o, out) in self.outputs.iter().enumerate() {
                     let at = format!("outputs[{o}]");
@@ -250,6 +290,7 @@ impl PlantSpec {
         };
         let outputs = match &kind {
             PlantKind::Chain(c) => c.iter().map(|c| c.name.clone()).collect(),
+            PlantKind::Ode(_) => vec!["y".to_string()],
         };
         Ok(Plant {
             name: self.name.clone(),
