@@ -8,9 +8,11 @@
 //! - [`plant`]: plant specs (`plants/*.json`) and the simulator;
 //! - [`scenario`]: excitations, sampling, noise, seed and split (`scenarios/*.json`);
 //! - [`data`]: records, CSV in and out, atomic writes;
-//! - [`metrics`]: R^2, RMSE, NRMSE / fit %, max error.
+//! - [`metrics`]: R^2, RMSE, NRMSE / fit %, max error;
+//! - [`plot`]: figures (PNG, SVG): loops, time, residual loops, parity, spectra, sweeps, ladder.
 
+pub mod cli;
 pub mod data;
 pub mod effect;
 pub mod metrics;
-pub mod cli;
+pub mod plot;

@@ -5,6 +5,8 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod plot;
+
 /// Simulate, identify, plot and improve models of hysteretic actuators.
 #[derive(Debug, Parser)]
 #[command(name = "hystbench", version, about, long_about = None)]
@@ -16,11 +18,14 @@ pub struct Cli {
 /// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// Draw a figure (PNG or SVG): loop, time, residual-loop, parity, spectrum, sweep, ladder.
+    Plot(plot::PlotArgs),
 }
 
 /// Run one parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Plot(args) => plot::run(args),
     }
 }
 
