@@ -106,6 +106,20 @@ pub fn chart<'a, DB: DrawingBackend>(
     Ok(chart)
 }
 
+/// A polyline through `points` as drawable elements. SVG gets one path (the viewer joins the
+/// segments properly). A bitmap gets one element per segment: plotters fills a wide polyline as
+/// one polygon with unlimited miter joins, which draws spikes at sharp reversals and fills
+/// self-crossing loops wrongly; separate segments have neither problem.
+pub fn path_elements<C: Clone>(points: Vec<C>, style: ShapeStyle) -> Vec<PathElement<C>> {
+    if points.len() < 2 || !super::render::drawing_bitmap() || style.stroke_width <= 1 {
+        return vec![PathElement::new(points, style)];
+    }
+    points
+        .windows(2)
+        .map(|w| PathElement::new(vec![w[0].clone(), w[1].clone()], style))
+        .collect()
+}
+
 /// Draw the legend of the series that were given labels.
 pub fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
     chart: &mut ChartContext<'a, DB, CT>,
@@ -190,11 +204,22 @@ pub fn titled<DB: DrawingBackend>(
     }
     let (w, _) = root.dim_in_pixel();
     let (strip, rest) = root.split_vertically(style::TITLE_SIZE + 28);
+    // shrink the title until it fits the width
+    let mut size = style::TITLE_SIZE;
+    while size > 12 {
+        let (tw, _) = root
+            .estimate_text_size(title, &(FONT, size).into_text_style(root))
+            .map_err(render_err)?;
+        if tw + 40 <= w {
+            break;
+        }
+        size -= 2;
+    }
     strip
         .draw(&Text::new(
             title.to_string(),
-            (w as i32 / 2, 14),
-            (FONT, style::TITLE_SIZE)
+            (w as i32 / 2, 14 + (style::TITLE_SIZE - size) as i32 / 2),
+            (FONT, size)
                 .into_font()
                 .color(&BLACK)
                 .pos(Pos::new(HPos::Center, VPos::Top)),

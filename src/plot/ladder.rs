@@ -135,10 +135,10 @@ impl Figure for LadderFigure {
             .collect();
         let mut chart = ChartBuilder::on(&body)
             .margin(16)
-            .margin_right(28)
+            .margin_right(48)
             .x_label_area_size(80)
             .y_label_area_size(110)
-            .build_cartesian_2d((0..n as i32).into_segmented(), (y0..y1).log_scale())
+            .build_cartesian_2d((0..n as i32 - 1).into_segmented(), (y0..y1).log_scale())
             .map_err(render_err)?;
         let xf = |v: &SegmentValue<i32>| match v {
             SegmentValue::CenterOf(i) => labels.get(*i as usize).cloned().unwrap_or_default(),

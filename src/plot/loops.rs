@@ -277,8 +277,8 @@ impl LoopFigure<'_> {
                     prev = Some(p);
                 }
                 chart
-                    .draw_series(chunks.into_iter().map(|(l, pts)| {
-                        PathElement::new(
+                    .draw_series(chunks.into_iter().flat_map(|(l, pts)| {
+                        axes::path_elements(
                             pts,
                             viridis(l as f64 / top).stroke_width(style::LINE_WIDTH),
                         )
@@ -292,10 +292,10 @@ impl LoopFigure<'_> {
                 let c = style::series_colour(n_series);
                 n_series += 1;
                 chart
-                    .draw_series(std::iter::once(PathElement::new(
+                    .draw_series(axes::path_elements(
                         idx.iter().map(|&k| (u[k], y[k])).collect::<Vec<_>>(),
                         c.stroke_width(style::LINE_WIDTH),
-                    )))
+                    ))
                     .map_err(render_err)?
                     .label(label)
                     .legend(legend_line(c));
@@ -315,10 +315,10 @@ impl LoopFigure<'_> {
                     "model".to_string()
                 };
                 chart
-                    .draw_series(std::iter::once(PathElement::new(
+                    .draw_series(axes::path_elements(
                         idx.iter().map(|&k| (u[k], p[k])).collect::<Vec<_>>(),
                         c.stroke_width(style::LINE_WIDTH),
-                    )))
+                    ))
                     .map_err(render_err)?
                     .label(label)
                     .legend(legend_line(c));

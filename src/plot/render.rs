@@ -28,6 +28,15 @@ pub fn register_embedded_font() -> Result<(), PlotError> {
     }
 }
 
+thread_local! {
+    static BITMAP: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// True while a bitmap is being drawn on this thread (see [`super::axes::path_elements`]).
+pub(crate) fn drawing_bitmap() -> bool {
+    BITMAP.with(|b| b.get())
+}
+
 /// The two output formats.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Format {
@@ -103,7 +112,10 @@ pub fn render<F: Figure>(
             {
                 let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
                 root.fill(&WHITE).map_err(render_err)?;
-                fig.draw(&root)?;
+                BITMAP.with(|b| b.set(true));
+                let drawn = fig.draw(&root);
+                BITMAP.with(|b| b.set(false));
+                drawn?;
                 root.present().map_err(render_err)?;
             }
             let mut png = Vec::new();

@@ -101,17 +101,17 @@ impl Figure for ResidualLoopFigure<'_> {
                 )?;
                 let xr = axes::padded_range(u, 0.04);
                 chart
-                    .draw_series(std::iter::once(PathElement::new(
+                    .draw_series(axes::path_elements(
                         vec![(xr.0, 0.0), (xr.1, 0.0)],
                         BLACK.mix(0.5).stroke_width(1),
-                    )))
+                    ))
                     .map_err(render_err)?;
                 let idx = decimate(&[u, e], 0..r.len(), 40_000);
                 chart
-                    .draw_series(std::iter::once(PathElement::new(
+                    .draw_series(axes::path_elements(
                         idx.iter().map(|&k| (u[k], e[k])).collect::<Vec<_>>(),
                         style::series_colour(0).stroke_width(style::LINE_WIDTH),
-                    )))
+                    ))
                     .map_err(render_err)?;
             }
         }

@@ -271,7 +271,9 @@ pub fn shoelace_area(x: &[f64], y: &[f64]) -> f64 {
 /// Returns (normalised area, cycles used).
 pub fn normalised_loop_area(x: &[f64], y: &[f64]) -> (f64, u32) {
     let bx = ptp(x) * ptp(y);
-    let cycles = cycle_index(x).last().copied().unwrap_or(0).max(1);
+    // a loop per two reversals, the record's ends counting as half a reversal each
+    let reversals = turning_points(x, 0.02 * ptp(x)).len() as u32;
+    let cycles = reversals.div_ceil(2).max(1);
     if bx <= 0.0 {
         return (0.0, cycles);
     }

@@ -16,7 +16,7 @@
 //! - J. W. Cooley, J. W. Tukey, "An algorithm for the machine calculation of complex Fourier
 //!   series", Math. Comp. 19, 1965, doi:10.1090/S0025-5718-1965-0178586-1.
 
-use super::axes::{legend, legend_line};
+use super::axes::{self, legend, legend_line};
 use super::render::{render_err, save, Figure};
 use super::source::PlotRecord;
 use super::style::{self, axis_label, FONT, PANEL};
@@ -231,12 +231,12 @@ impl Figure for SpectrumFigure<'_> {
                 let colour = style::series_colour(c);
                 let idx = log_decimate(f, a, 1500);
                 chart
-                    .draw_series(std::iter::once(PathElement::new(
+                    .draw_series(axes::path_elements(
                         idx.iter()
                             .map(|&k| (f[k], a[k].max(floor)))
                             .collect::<Vec<_>>(),
                         colour.stroke_width(style::LINE_WIDTH),
-                    )))
+                    ))
                     .map_err(render_err)?
                     .label(name.as_str())
                     .legend(legend_line(colour));

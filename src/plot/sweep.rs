@@ -15,7 +15,7 @@
 
 use super::axes::{self, colour_bar};
 use super::render::{render_err, save, Figure};
-use super::style::{self, fmt_num, viridis, FONT};
+use super::style::{self, viridis, FONT};
 use super::table::Table;
 use super::PlotError;
 use plotters::coord::Shift;
@@ -205,6 +205,16 @@ impl SweepFigure {
     }
 }
 
+fn fmt_seconds(s: f64) -> String {
+    if s >= 100.0 {
+        format!("{s:.0} s")
+    } else if s >= 1.0 {
+        format!("{s:.1} s")
+    } else {
+        format!("{s:.2} s")
+    }
+}
+
 fn lr_label(lr: f64) -> String {
     if (1e-3..1e3).contains(&lr) {
         format!("{lr}")
@@ -255,8 +265,8 @@ impl Figure for SweepFigure {
                         .x_label_area_size(70)
                         .y_label_area_size(90)
                         .build_cartesian_2d(
-                            (0..nx as i32).into_segmented(),
-                            (0..ny as i32).into_segmented(),
+                            (0..nx as i32 - 1).into_segmented(),
+                            (0..ny as i32 - 1).into_segmented(),
                         )
                         .map_err(render_err)?;
                     let lags = &self.lags;
@@ -296,11 +306,11 @@ impl Figure for SweepFigure {
                                     None => (
                                         style::DIVERGED,
                                         "diverged".to_string(),
-                                        format!("{} s", fmt_num(c.seconds)),
+                                        fmt_seconds(c.seconds),
                                     ),
                                     Some(r2) => {
                                         let x = (r2.max(-1.0) - lo) / (hi - lo);
-                                        let mut l2 = format!("{} s", fmt_num(c.seconds));
+                                        let mut l2 = fmt_seconds(c.seconds);
                                         if c.diverged > 0 {
                                             l2 = format!("{l2}, {}/{} div.", c.diverged, c.runs);
                                         }

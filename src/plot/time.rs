@@ -120,20 +120,20 @@ impl Figure for TimeFigure<'_> {
             let mut chart = axes::chart(area, "", xr, yr, &tl, &ylabel)?;
             if matches!(panel, Panel::Residual { .. }) {
                 chart
-                    .draw_series(std::iter::once(PathElement::new(
+                    .draw_series(axes::path_elements(
                         vec![(xr.0, 0.0), (xr.1, 0.0)],
                         BLACK.mix(0.5).stroke_width(1),
-                    )))
+                    ))
                     .map_err(render_err)?;
             }
             let sigs: Vec<&[f64]> = series.iter().map(|s| s.1).collect();
             let idx = decimate(&sigs, 0..n, self.max_points);
             for (name, v, c) in &series {
                 chart
-                    .draw_series(std::iter::once(PathElement::new(
+                    .draw_series(axes::path_elements(
                         idx.iter().map(|&k| (t[k], v[k])).collect::<Vec<_>>(),
                         c.stroke_width(style::LINE_WIDTH),
-                    )))
+                    ))
                     .map_err(render_err)?
                     .label(name.as_str())
                     .legend(legend_line(*c));
