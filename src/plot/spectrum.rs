@@ -5,10 +5,11 @@
 //! a missing static or hysteretic effect; one that rises at low frequency at creep; a peak near a
 //! resonance at missing dynamics.
 //!
-//! The spectrum is Welch's average: Hann-windowed segments of a power-of-two length (the largest
-//! one that fits the record at least twice, at most 2^16), half overlapping, mean removed, each
-//! transformed with an iterative radix-2 FFT; the squared magnitudes are averaged and scaled so
-//! that a sine of amplitude A shows as A at its frequency.
+//! The whole record is Hann-windowed, mean-removed, zero-padded to a power of two and transformed
+//! with an iterative radix-2 FFT, so the frequency resolution is that of the record's length
+//! (a few periods of a 1 Hz excitation still resolve its harmonics); records longer than 2^20
+//! samples are averaged over half-overlapping segments (Welch). The amplitudes are scaled so that
+//! a sine of amplitude A shows as A at its frequency.
 //!
 //! ## References
 //! - P. Welch, "The use of fast Fourier transform for the estimation of power spectra",
@@ -65,29 +66,36 @@ pub fn fft(re: &mut [f64], im: &mut [f64]) {
     }
 }
 
-/// Welch amplitude spectrum of `x` sampled every `ts` seconds: (frequencies in Hz, amplitudes),
-/// without the 0 Hz bin. Needs at least 16 samples.
+/// Longest segment transformed at once; longer records are averaged over half-overlapping
+/// segments of this length (Welch).
+pub const MAX_SEGMENT: usize = 1 << 20;
+
+/// Amplitude spectrum of `x` sampled every `ts` seconds: (frequencies in Hz, amplitudes), without
+/// the 0 Hz bin. The whole record (up to [`MAX_SEGMENT`] samples; longer ones are Welch-averaged)
+/// is Hann-windowed, mean-removed, zero-padded to a power of two and transformed, so the
+/// resolution is that of the record's length. Needs at least 16 samples.
 pub fn amplitude_spectrum(x: &[f64], ts: f64) -> (Vec<f64>, Vec<f64>) {
     let n = x.len();
     if n < 16 {
         return (Vec::new(), Vec::new());
     }
-    let mut l = 1usize << (usize::BITS - 1 - (n / 2).max(16).leading_zeros());
-    l = l.min(1 << 16);
+    let l = n.min(MAX_SEGMENT);
+    let nfft = l.next_power_of_two();
     let w: Vec<f64> = (0..l)
         .map(|k| 0.5 - 0.5 * (2.0 * PI * k as f64 / l as f64).cos())
         .collect();
     let wsum: f64 = w.iter().sum();
-    let mut power = vec![0.0; l / 2 + 1];
+    let mut power = vec![0.0; nfft / 2 + 1];
     let mut segments = 0;
     let mut start = 0;
-    let (mut re, mut im) = (vec![0.0; l], vec![0.0; l]);
+    let (mut re, mut im) = (vec![0.0; nfft], vec![0.0; nfft]);
     while start + l <= n {
         let seg = &x[start..start + l];
         let mean = seg.iter().sum::<f64>() / l as f64;
+        re.iter_mut().for_each(|v| *v = 0.0);
+        im.iter_mut().for_each(|v| *v = 0.0);
         for k in 0..l {
             re[k] = (seg[k] - mean) * w[k];
-            im[k] = 0.0;
         }
         fft(&mut re, &mut im);
         for (k, p) in power.iter_mut().enumerate() {
@@ -96,9 +104,9 @@ pub fn amplitude_spectrum(x: &[f64], ts: f64) -> (Vec<f64>, Vec<f64>) {
         segments += 1;
         start += l / 2;
     }
-    let df = 1.0 / (l as f64 * ts);
-    let f = (1..=l / 2).map(|k| k as f64 * df).collect();
-    let a = (1..=l / 2)
+    let df = 1.0 / (nfft as f64 * ts);
+    let f = (1..=nfft / 2).map(|k| k as f64 * df).collect();
+    let a = (1..=nfft / 2)
         .map(|k| 2.0 * (power[k] / segments as f64).sqrt() / wsum)
         .collect();
     (f, a)
