@@ -241,10 +241,11 @@ impl LoopFigure<'_> {
                 sigs.push(p);
             }
             let idx = decimate(&sigs, 0..r.len(), self.options.max_points);
-            let label = if self.records.len() > 1 {
-                format!("{} measured", r.label)
-            } else {
-                "measured".to_string()
+            let any_model = self.records.iter().any(PlotRecord::has_predictions);
+            let label = match (self.records.len() > 1, any_model) {
+                (true, true) => format!("{} measured", r.label),
+                (true, false) => r.label.clone(),
+                (false, _) => "measured".to_string(),
             };
             if ri == 0 && colour != LoopColour::Series {
                 let n = r.len();
