@@ -448,6 +448,12 @@ fn bad_input_gets_clear_errors_and_writes_nothing() {
     ]);
     assert!(e.contains("a.csv"), "{e}");
 
+    // a size out of range, or not a size
+    let e = fails(&["plot", "loop", "--data", a, "--size", "10x10", "--out", o]);
+    assert!(e.contains("10x10") && e.contains("200..=10000"), "{e}");
+    let e = fails(&["plot", "loop", "--data", a, "--size", "big", "--out", o]);
+    assert!(e.contains("WIDTHxHEIGHT"), "{e}");
+
     // a model figure of a record without a model
     let plain = d.join("plain.csv");
     std::fs::write(&plain, "t,u,y\n0,0,0\n0.1,1,1\n0.2,0,0.5\n0.3,-1,-1\n").unwrap();
@@ -499,4 +505,57 @@ fn bad_input_gets_clear_errors_and_writes_nothing() {
     ok(&["plot", "loop", "--data", a, "--out", o, "--force"]);
     assert!(check_png(&out, (840, 780)) > 1000);
     assert!(!files_in(d).iter().any(|f| f.contains(".tmp")));
+}
+
+#[test]
+fn the_library_draws_a_loop_without_the_command_line() {
+    use hystbench::data::{IoRecord, Signal};
+    use hystbench::plot::{loop_figure, render, Format, LoopFigure, LoopOptions, PlotRecord};
+    let n = 5000;
+    let u: Vec<f64> = (0..n).map(|k| (k as f64 * 0.01).sin()).collect();
+    let mut z = 0.0f64;
+    let y: Vec<f64> = u
+        .iter()
+        .map(|&v| {
+            z = z.clamp(v - 0.2, v + 0.2);
+            z
+        })
+        .collect();
+    let io = IoRecord {
+        path: "memory".into(),
+        ts: 1e-3,
+        t0: 0.0,
+        time_name: "t".into(),
+        inputs: vec![Signal {
+            name: "u_N".into(),
+            values: u.clone(),
+        }],
+        outputs: vec![Signal {
+            name: "y_m".into(),
+            values: y,
+        }],
+    };
+    let rec = PlotRecord::from_io("memory", io)
+        .with_prediction(0, u)
+        .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("loop.svg");
+    loop_figure(
+        std::slice::from_ref(&rec),
+        &LoopOptions::default(),
+        &p,
+        None,
+        false,
+    )
+    .unwrap();
+    let svg = std::fs::read_to_string(&p).unwrap();
+    assert!(
+        svg.contains("u [N]") && svg.contains("y [m]") && svg.contains("model"),
+        "axis labels with units"
+    );
+    // in memory, for commands that stage several files in one OutputGuard
+    let options = LoopOptions::default();
+    let fig = LoopFigure::new(std::slice::from_ref(&rec), &options).unwrap();
+    let png = render(&fig, Format::Png, Some((640, 480))).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
 }
