@@ -8,7 +8,8 @@
 //! - [`plant`]: plant specs (`plants/*.json`) and the simulator;
 //! - [`scenario`]: excitations, sampling, noise, seed and split (`scenarios/*.json`);
 //! - [`data`]: records, CSV in and out, atomic writes;
-//! - [`metrics`]: R^2, RMSE, NRMSE / fit %, max error.
+//! - [`metrics`]: R^2, RMSE, NRMSE / fit %, max error;
+//! - [`plot`]: figures (PNG, SVG): loops, time, residual loops, parity, spectra, sweeps, ladder.
 
 pub mod cli;
 pub mod data;
@@ -17,5 +18,6 @@ pub mod effect;
 pub mod metrics;
 pub mod model;
 pub mod plant;
+pub mod plot;
 pub mod scenario;
 pub mod simulator;

@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 pub mod compare;
 pub mod demo;
 pub mod diagnose;
+pub mod plot;
 pub mod simulate;
 
 /// Simulate, identify, plot and improve models of hysteretic actuators.
@@ -29,6 +30,8 @@ pub enum Command {
     Demo(demo::Args),
     /// Simulate a plant on a scenario or a recorded input and write a record.
     Simulate(simulate::Args),
+    /// Draw a figure (PNG or SVG): loop, time, residual-loop, parity, spectrum, sweep, ladder.
+    Plot(plot::PlotArgs),
 }
 
 /// Run one parsed command line.
@@ -38,6 +41,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Demo(a) => demo::run(a),
         Command::Diagnose(a) => diagnose::run(a),
         Command::Simulate(a) => simulate::run(a),
+        Command::Plot(args) => plot::run(args),
     }
 }
 

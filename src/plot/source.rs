@@ -1,0 +1,310 @@
+//! What a figure is drawn from: a record's inputs and outputs, plus the model's prediction of each
+//! output when the CSV has a `<output>_hat` column (as `hystbench predict` writes: `t`, inputs,
+//! measured outputs, `<output>_hat`).
+
+use super::decimate::turning_points;
+use super::PlotError;
+use crate::data::{read_csv, DataError, IoRecord, Record, Signal};
+use std::path::Path;
+
+/// A record to plot: inputs, measured outputs and, per output, the model's prediction if any.
+#[derive(Debug, Clone)]
+pub struct PlotRecord {
+    /// Name in legends (the file stem when loaded from a file).
+    pub label: String,
+    pub io: IoRecord,
+    /// One entry per output of `io`: the predicted signal, if the record has one.
+    pub predicted: Vec<Option<Vec<f64>>>,
+    /// The record's column names, listed in errors.
+    pub columns: Vec<String>,
+}
+
+impl PlotRecord {
+    /// A record without predictions.
+    pub fn from_io(label: impl Into<String>, io: IoRecord) -> PlotRecord {
+        let mut columns = vec![io.time_name.clone()];
+        columns.extend(io.input_names());
+        columns.extend(io.output_names());
+        PlotRecord {
+            label: label.into(),
+            predicted: vec![None; io.outputs.len()],
+            io,
+            columns,
+        }
+    }
+
+    /// Add the model's prediction of output `j` (same length as the record).
+    pub fn with_prediction(mut self, j: usize, values: Vec<f64>) -> Result<PlotRecord, PlotError> {
+        if j >= self.io.outputs.len() || values.len() != self.io.len() {
+            return Err(PlotError::Invalid {
+                what: format!("prediction for output {j} of {}", self.label),
+                problem: format!(
+                    "the record has {} outputs and {} samples; the prediction has {} samples",
+                    self.io.outputs.len(),
+                    self.io.len(),
+                    values.len()
+                ),
+            });
+        }
+        self.columns
+            .push(format!("{}_hat", self.io.outputs[j].name));
+        self.predicted[j] = Some(values);
+        Ok(self)
+    }
+
+    /// Pick inputs and outputs from a parsed record (named columns, else the `u`/`y` convention,
+    /// else, for a record with a time column and exactly two other columns besides `*_hat`, those
+    /// two as input and output), and the `<output>_hat` columns as predictions.
+    pub fn from_record(
+        rec: &Record,
+        inputs: Option<&[String]>,
+        outputs: Option<&[String]>,
+    ) -> Result<PlotRecord, PlotError> {
+        let io = match IoRecord::from_record(rec, inputs, outputs, true) {
+            Ok(io) => io,
+            Err(e @ DataError::NoDefaultColumns { .. }) => {
+                let time = rec.time_column();
+                let rest: Vec<String> = rec
+                    .names
+                    .iter()
+                    .filter(|n| Some(n.as_str()) != time && !n.ends_with("_hat"))
+                    .cloned()
+                    .collect();
+                let unnamed = inputs.is_none_or(<[String]>::is_empty)
+                    && outputs.is_none_or(<[String]>::is_empty);
+                if time.is_some() && rest.len() == 2 && unnamed {
+                    IoRecord::from_record(rec, Some(&rest[..1]), Some(&rest[1..]), true)?
+                } else {
+                    return Err(e.into());
+                }
+            }
+            Err(e) => return Err(e.into()),
+        };
+        let predicted = io
+            .outputs
+            .iter()
+            .map(|s| {
+                rec.names
+                    .iter()
+                    .position(|n| *n == format!("{}_hat", s.name))
+                    .map(|i| rec.columns[i].clone())
+            })
+            .collect();
+        let label = rec
+            .path
+            .file_stem()
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_else(|| "record".to_string());
+        Ok(PlotRecord {
+            label,
+            io,
+            predicted,
+            columns: rec.names.clone(),
+        })
+    }
+
+    /// Read a CSV file and pick its columns (see [`PlotRecord::from_record`]).
+    pub fn load(
+        path: &Path,
+        inputs: Option<&[String]>,
+        outputs: Option<&[String]>,
+    ) -> Result<PlotRecord, PlotError> {
+        let rec = read_csv(path)?;
+        PlotRecord::from_record(&rec, inputs, outputs)
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.io.len()
+    }
+
+    /// True when there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.io.is_empty()
+    }
+
+    /// Fail unless the record has at least `needed` samples.
+    pub fn require_len(&self, needed: usize, what: &str) -> Result<(), PlotError> {
+        if self.len() < needed {
+            return Err(PlotError::TooFewSamples {
+                path: self.io.path.clone(),
+                what: what.to_string(),
+                samples: self.len(),
+                needed,
+            });
+        }
+        Ok(())
+    }
+
+    /// Fail unless every output has a prediction.
+    pub fn require_predictions(&self) -> Result<(), PlotError> {
+        for (s, p) in self.io.outputs.iter().zip(&self.predicted) {
+            if p.is_none() {
+                return Err(PlotError::NoPrediction {
+                    path: self.io.path.clone(),
+                    output: s.name.clone(),
+                    available: self.columns.join(", "),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// True when any output has a prediction.
+    pub fn has_predictions(&self) -> bool {
+        self.predicted.iter().any(Option::is_some)
+    }
+
+    /// Residual `y - y_hat` of output `j`, if predicted.
+    pub fn residual(&self, j: usize) -> Option<Vec<f64>> {
+        let p = self.predicted.get(j)?.as_ref()?;
+        Some(
+            self.io.outputs[j]
+                .values
+                .iter()
+                .zip(p)
+                .map(|(y, h)| y - h)
+                .collect(),
+        )
+    }
+
+    /// Time of sample `k` in seconds.
+    pub fn time(&self, k: usize) -> f64 {
+        self.io.t0 + k as f64 * self.io.ts
+    }
+
+    /// The samples with `from <= t <= to` (either bound may be open).
+    pub fn window(&self, from: Option<f64>, to: Option<f64>) -> Result<PlotRecord, PlotError> {
+        if from.is_none() && to.is_none() {
+            return Ok(self.clone());
+        }
+        let n = self.len();
+        let (start, end) = (self.time(0), self.time(n.saturating_sub(1)));
+        let a = from.unwrap_or(f64::NEG_INFINITY);
+        let b = to.unwrap_or(f64::INFINITY);
+        let first = (0..n).find(|&k| self.time(k) >= a - 1e-9 * self.io.ts);
+        let last = (0..n)
+            .rev()
+            .find(|&k| self.time(k) <= b + 1e-9 * self.io.ts);
+        match (first, last) {
+            (Some(i), Some(j)) if j > i => {
+                let io = self.io.slice(i..j + 1);
+                Ok(PlotRecord {
+                    label: self.label.clone(),
+                    io,
+                    predicted: self
+                        .predicted
+                        .iter()
+                        .map(|p| p.as_ref().map(|p| p[i..j + 1].to_vec()))
+                        .collect(),
+                    columns: self.columns.clone(),
+                })
+            }
+            _ => Err(PlotError::EmptyWindow {
+                path: self.io.path.clone(),
+                from: a,
+                to: b,
+                start,
+                end,
+            }),
+        }
+    }
+}
+
+/// A named signal's values.
+pub fn values(s: &Signal) -> &[f64] {
+    &s.values
+}
+
+/// Peak to peak.
+pub fn ptp(x: &[f64]) -> f64 {
+    let (lo, hi) = x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    if hi >= lo {
+        hi - lo
+    } else {
+        0.0
+    }
+}
+
+/// Cycle number of every sample: the count of input reversals so far (reversals swinging more
+/// than 2 % of the input's range) divided by two. Minor loops get their own numbers.
+pub fn cycle_index(x: &[f64]) -> Vec<u32> {
+    let tp = turning_points(x, 0.02 * ptp(x));
+    let mut out = Vec::with_capacity(x.len());
+    let mut next = tp.iter().peekable();
+    let mut reversals = 0u32;
+    for k in 0..x.len() {
+        while next.peek().is_some_and(|&&i| i < k) {
+            next.next();
+            reversals += 1;
+        }
+        out.push(reversals / 2);
+    }
+    out
+}
+
+/// Signed area enclosed by the path (x, y), closed from the last point back to the first
+/// (shoelace formula). Counter-clockwise is positive.
+pub fn shoelace_area(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len().min(y.len());
+    if n < 3 {
+        return 0.0;
+    }
+    let (mx, my) = (
+        x[..n].iter().sum::<f64>() / n as f64,
+        y[..n].iter().sum::<f64>() / n as f64,
+    );
+    let mut a = 0.0;
+    for k in 0..n {
+        let j = (k + 1) % n;
+        a += (x[k] - mx) * (y[j] - my) - (x[j] - mx) * (y[k] - my);
+    }
+    0.5 * a
+}
+
+/// Loop area of (x, y) per cycle of x, normalised by the bounding box `ptp(x) * ptp(y)`:
+/// 0 for a single-valued curve, about 0.785 for a circle traced once per cycle.
+/// Returns (normalised area, cycles used).
+pub fn normalised_loop_area(x: &[f64], y: &[f64]) -> (f64, u32) {
+    let bx = ptp(x) * ptp(y);
+    // a loop per two reversals, the record's ends counting as half a reversal each
+    let reversals = turning_points(x, 0.02 * ptp(x)).len() as u32;
+    let cycles = reversals.div_ceil(2).max(1);
+    if bx <= 0.0 {
+        return (0.0, cycles);
+    }
+    (shoelace_area(x, y).abs() / cycles as f64 / bx, cycles)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn area_of_a_circle_and_of_a_line() {
+        let n = 4000;
+        let th: Vec<f64> = (0..n)
+            .map(|k| 2.0 * std::f64::consts::PI * 3.0 * k as f64 / n as f64)
+            .collect();
+        let x: Vec<f64> = th.iter().map(|t| t.cos()).collect();
+        let y: Vec<f64> = th.iter().map(|t| t.sin()).collect();
+        let (a, c) = normalised_loop_area(&x, &y);
+        assert_eq!(c, 3);
+        assert!((a - std::f64::consts::PI / 4.0).abs() < 0.01, "{a}");
+        let (a, _) = normalised_loop_area(&x, &x);
+        assert!(a.abs() < 1e-9);
+    }
+
+    #[test]
+    fn cycles_count_reversals() {
+        let x: Vec<f64> = (0..100).map(|k| ((k % 20) as f64 - 10.0).abs()).collect();
+        let c = cycle_index(&x);
+        assert_eq!(c[0], 0);
+        assert_eq!(c[99], 4); // 9 reversals
+        assert!(c.windows(2).all(|w| w[1] >= w[0]));
+    }
+}

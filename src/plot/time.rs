@@ -1,0 +1,158 @@
+//! # Time-series figure
+//!
+//! Measured output, model prediction (`<output>_hat`, one-step ahead or free run, whichever the
+//! record holds) and residual `y - y_hat` over time, one pair of stacked panels per output, on a
+//! shared time axis. Without predictions, each input and output gets its own panel. The zoom
+//! window is chosen with [`PlotRecord::window`] (`--from`/`--to`).
+
+use super::axes::{self, legend, legend_line};
+use super::decimate::decimate;
+use super::render::{render_err, save, Figure};
+use super::source::PlotRecord;
+use super::style::{self, axis_label, time_label, Quantity};
+use super::PlotError;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::Path;
+
+/// Time-series figure of one record.
+pub struct TimeFigure<'a> {
+    pub record: &'a PlotRecord,
+    pub title: Option<String>,
+    /// Points per series at most.
+    pub max_points: usize,
+}
+
+enum Panel {
+    Signal { name: String, values: Vec<f64> },
+    Fit { j: usize },
+    Residual { j: usize },
+}
+
+impl<'a> TimeFigure<'a> {
+    /// A figure of `record` (at least 2 samples).
+    pub fn new(record: &'a PlotRecord, title: Option<String>) -> Result<Self, PlotError> {
+        record.require_len(2, "time")?;
+        Ok(TimeFigure {
+            record,
+            title,
+            max_points: 20_000,
+        })
+    }
+
+    fn panels(&self) -> Vec<Panel> {
+        let r = self.record;
+        if r.has_predictions() {
+            let mut p = Vec::new();
+            for j in 0..r.io.outputs.len() {
+                if r.predicted[j].is_some() {
+                    p.push(Panel::Fit { j });
+                    p.push(Panel::Residual { j });
+                } else {
+                    p.push(Panel::Signal {
+                        name: r.io.outputs[j].name.clone(),
+                        values: r.io.outputs[j].values.clone(),
+                    });
+                }
+            }
+            p
+        } else {
+            r.io.inputs
+                .iter()
+                .chain(&r.io.outputs)
+                .map(|s| Panel::Signal {
+                    name: s.name.clone(),
+                    values: s.values.clone(),
+                })
+                .collect()
+        }
+    }
+}
+
+impl Figure for TimeFigure<'_> {
+    fn default_size(&self) -> (u32, u32) {
+        (1400, 80 + 340 * self.panels().len() as u32)
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), PlotError> {
+        let r = self.record;
+        let title = self.title.clone().unwrap_or_else(|| {
+            if r.has_predictions() {
+                format!("Measured, model and residual over time ({})", r.label)
+            } else {
+                format!("Record over time ({})", r.label)
+            }
+        });
+        let body = axes::titled(root, &title)?;
+        let panels = self.panels();
+        let areas = body.split_evenly((panels.len(), 1));
+        let n = r.len();
+        let t: Vec<f64> = (0..n).map(|k| r.time(k)).collect();
+        let xr = (t[0], t[n - 1]);
+        let tl = time_label(&r.io.time_name);
+        for (area, panel) in areas.iter().zip(&panels) {
+            let mut series: Vec<(String, &[f64], RGBColor)> = Vec::new();
+            let residual;
+            let ylabel = match panel {
+                Panel::Signal { name, values } => {
+                    series.push((name.clone(), values, style::series_colour(0)));
+                    axis_label(name)
+                }
+                Panel::Fit { j } => {
+                    let s = &r.io.outputs[*j];
+                    series.push(("measured".into(), &s.values, style::series_colour(0)));
+                    if let Some(p) = &r.predicted[*j] {
+                        series.push(("model".into(), p, style::series_colour(1)));
+                    }
+                    axis_label(&s.name)
+                }
+                Panel::Residual { j } => {
+                    residual = r.residual(*j).unwrap_or_default();
+                    series.push(("residual".into(), &residual, style::series_colour(2)));
+                    let q = Quantity::from_column(&r.io.outputs[*j].name);
+                    q.label_with(&format!("residual {}", q.name))
+                }
+            };
+            let mut yr = (f64::INFINITY, f64::NEG_INFINITY);
+            for (_, v, _) in &series {
+                yr = axes::union(yr, axes::padded_range(*v, 0.05));
+            }
+            let mut chart = axes::chart(area, "", xr, yr, &tl, &ylabel)?;
+            if matches!(panel, Panel::Residual { .. }) {
+                chart
+                    .draw_series(axes::path_elements(
+                        vec![(xr.0, 0.0), (xr.1, 0.0)],
+                        BLACK.mix(0.5).stroke_width(1),
+                    ))
+                    .map_err(render_err)?;
+            }
+            let sigs: Vec<&[f64]> = series.iter().map(|s| s.1).collect();
+            let idx = decimate(&sigs, 0..n, self.max_points);
+            for (name, v, c) in &series {
+                chart
+                    .draw_series(axes::path_elements(
+                        idx.iter().map(|&k| (t[k], v[k])).collect::<Vec<_>>(),
+                        c.stroke_width(style::LINE_WIDTH),
+                    ))
+                    .map_err(render_err)?
+                    .label(name.as_str())
+                    .legend(legend_line(*c));
+            }
+            if series.len() > 1 || matches!(panel, Panel::Residual { .. }) {
+                legend(&mut chart, SeriesLabelPosition::UpperRight)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Draw a time figure of `record` to `path` (see [`TimeFigure`]).
+pub fn time_figure(
+    record: &PlotRecord,
+    title: Option<String>,
+    path: &Path,
+    size: Option<(u32, u32)>,
+    force: bool,
+) -> Result<(), PlotError> {
+    save(&TimeFigure::new(record, title)?, path, size, force)
+}
