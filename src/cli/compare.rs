@@ -51,6 +51,11 @@ pub fn markdown(model: &dyn Model, data: &std::path::Path, cmp: &[OutputComparis
     let mut s = format!("# {} against {}\n\n", model.describe(), data.display());
     for c in cmp {
         let u = unit_of(&c.output);
+        let bracket = if u.is_empty() {
+            String::new()
+        } else {
+            format!(" [{u}]")
+        };
         let sc = &c.scores;
         let _ = writeln!(s, "## {}\n", c.output);
         let _ = writeln!(
@@ -69,7 +74,7 @@ pub fn markdown(model: &dyn Model, data: &std::path::Path, cmp: &[OutputComparis
             "Residual-against-{} loop area: {:.4} (0 for a model with the right memory).\n",
             c.input, c.residual_loop_area
         );
-        let _ = writeln!(s, "| where | samples | RMS error [{u}] |\n|---|---|---|");
+        let _ = writeln!(s, "| where | samples | RMS error{bracket} |\n|---|---|---|");
         for sl in c
             .by_direction
             .iter()
@@ -80,7 +85,7 @@ pub fn markdown(model: &dyn Model, data: &std::path::Path, cmp: &[OutputComparis
                 let _ = writeln!(s, "| {} | {} | {:.4} |", sl.label, sl.samples, sl.rms);
             }
         }
-        let _ = writeln!(s, "\n| frequency band | RMS error [{u}] |\n|---|---|");
+        let _ = writeln!(s, "\n| frequency band | RMS error{bracket} |\n|---|---|");
         for sl in &c.by_frequency {
             let _ = writeln!(s, "| {} | {:.4} |", sl.label, sl.rms);
         }
@@ -95,6 +100,33 @@ pub fn markdown(model: &dyn Model, data: &std::path::Path, cmp: &[OutputComparis
         s.push('\n');
     }
     s
+}
+
+/// Loop (measured and predicted), time and residual-loop figures beside a report; their names.
+pub fn write_figures(
+    dir: &std::path::Path,
+    io: &IoRecord,
+    pred: &[Vec<f64>],
+) -> anyhow::Result<Vec<String>> {
+    use crate::plot::{loop_figure, residual_loop_figure, time_figure, LoopOptions, PlotRecord};
+    let mut rec = PlotRecord::from_io("measured", io.clone());
+    for (j, p) in pred.iter().enumerate() {
+        rec = rec.with_prediction(j, p.clone())?;
+    }
+    let mut names = Vec::new();
+    loop_figure(
+        std::slice::from_ref(&rec),
+        &LoopOptions::default(),
+        &dir.join("loop.png"),
+        None,
+        true,
+    )?;
+    names.push("loop.png".to_string());
+    time_figure(&rec, None, &dir.join("time.png"), None, true)?;
+    names.push("time.png".to_string());
+    residual_loop_figure(&rec, None, &dir.join("residual_loop.png"), None, true)?;
+    names.push("residual_loop.png".to_string());
+    Ok(names)
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -113,15 +145,21 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             cols.push(p.clone());
         }
         crate::data::write_csv_atomic(&dir.join("prediction.csv"), &names, &cols, true)?;
+        let figures = write_figures(dir, &io, &pred)?;
+        let mut md = md.clone();
+        md += "## Figures\n\n";
+        for f in figures {
+            md += &format!("![{f}]({f})\n\n");
+        }
+        crate::data::write_atomic(&dir.join("report.md"), md.as_bytes(), true)?;
         eprintln!("report: {}", dir.join("report.md").display());
     }
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string(&serde_json::json!({ "outputs": cmp }))?
-        );
+        crate::cli::print(&serde_json::to_string(
+            &serde_json::json!({ "outputs": cmp }),
+        )?);
     } else {
-        println!("{md}");
+        crate::cli::print(&md);
     }
     Ok(())
 }
