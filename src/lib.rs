@@ -13,6 +13,7 @@
 pub mod cli;
 pub mod data;
 pub mod effect;
+pub mod graybox;
 pub mod metrics;
 pub mod plant;
 pub mod scenario;
