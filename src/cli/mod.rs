@@ -6,6 +6,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod demo;
+pub mod fit;
 pub mod simulate;
 
 /// Simulate, identify, plot and improve models of hysteretic actuators.
@@ -23,6 +24,8 @@ pub enum Command {
     Demo(demo::Args),
     /// Simulate a plant on a scenario or a recorded input and write a record.
     Simulate(simulate::Args),
+    /// Fit a grey-box model (hysteresis, creep, dynamics, coupling) to a record.
+    Fit(fit::Args),
 }
 
 /// Run one parsed command line.
@@ -30,6 +33,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Demo(a) => demo::run(a),
         Command::Simulate(a) => simulate::run(a),
+        Command::Fit(a) => fit::run(a),
     }
 }
 

@@ -2,7 +2,9 @@
 //! the initialisation and Levenberg-Marquardt, and scores the fitted plant by simulating it.
 
 use super::fit::{levenberg_marquardt, OutputProblem, OutputStructure};
-use super::{FitSummary, FittedGreyBox, GreyBoxConfig, GreyBoxError, HysteresisOperator, OutputFit};
+use super::{
+    FitSummary, FittedGreyBox, GreyBoxConfig, GreyBoxError, HysteresisOperator, OutputFit,
+};
 use crate::data::IoRecord;
 use crate::plant::{PlantSpec, Units};
 use std::time::Instant;
@@ -127,6 +129,7 @@ impl GreyBoxConfig {
         let per_path = match self.hysteresis {
             None => 1,
             Some(HysteresisOperator::PrandtlIshlinskii) => 1 + self.options.plays,
+            Some(HysteresisOperator::Combined) => 4 + self.options.plays,
             Some(HysteresisOperator::BoucWen) => 4,
         };
         let paths = if self.coupling { rec.inputs.len() } else { 1 };

@@ -12,7 +12,9 @@ pub enum GreyBoxError {
     RepeatedEffect { name: String },
     #[error("two hysteresis operators are named (`{first}` and `{second}`); name one of hysteresis, prandtl-ishlinskii, bouc-wen")]
     TwoOperators { first: String, second: String },
-    #[error("{path}: `coupling` needs a record with several inputs, but it has {inputs} ({names})")]
+    #[error(
+        "{path}: `coupling` needs a record with several inputs, but it has {inputs} ({names})"
+    )]
     CouplingNeedsInputs {
         path: PathBuf,
         inputs: usize,
@@ -54,7 +56,9 @@ pub enum GreyBoxError {
         name: String,
         available: String,
     },
-    #[error("the fit of output `{output}` produced a non-finite value ({what}); nothing was written")]
+    #[error(
+        "the fit of output `{output}` produced a non-finite value ({what}); nothing was written"
+    )]
     NonFinite { output: String, what: String },
     #[error("{path}: cannot read: {source}")]
     Read {

@@ -55,11 +55,13 @@ fn log_bounded_inv(v: f64, lo: f64, hi: f64) -> f64 {
 enum PathKind {
     /// w = g u.
     Linear,
-    /// w = p0 u + sign * sum p_k z_k, p_k >= 0 (plays precomputed).
+    /// w = p0 u + sign * sum p_k z_k, p_k >= 0 (plays precomputed), plus, with `bw`,
+    /// - A htilde(B, Gamma), A >= 0 (the combined operator).
     Pi {
         thresholds: Vec<f64>,
         sign: f64,
         plays: Vec<Vec<f64>>,
+        bw: Option<(usize, f64)>,
     },
     /// w = d u - A htilde(B, Gamma), A >= 0; B = exp(theta)/range, Gamma = B tanh(theta').
     BoucWen { at: usize, range: f64 },
@@ -123,6 +125,10 @@ pub(crate) fn pi_thresholds(u: &[f64], n: usize) -> Vec<f64> {
     (1..=n).map(|k| k as f64 * r / (n + 1) as f64).collect()
 }
 
+fn max_abs(u: &[f64]) -> f64 {
+    u.iter().fold(0.0f64, |a, v| a.max(v.abs())).max(1e-300)
+}
+
 fn plays_of(u: &[f64], thresholds: &[f64]) -> Vec<Vec<f64>> {
     thresholds
         .par_iter()
@@ -180,20 +186,34 @@ impl<'a> OutputProblem<'a> {
         for (k, &j) in structure.paths.iter().enumerate() {
             let kind = match structure.operator {
                 None => PathKind::Linear,
-                Some(HysteresisOperator::PrandtlIshlinskii) => {
+                Some(
+                    op @ (HysteresisOperator::PrandtlIshlinskii | HysteresisOperator::Combined),
+                ) => {
                     let thresholds = pi_thresholds(u[j], plays);
                     let plays = plays_of(u[j], &thresholds);
+                    let sign = if lin[k] < 0.0 { -1.0 } else { 1.0 };
+                    // a negative path cannot carry a Bouc-Wen term (A > 0 in the plant file)
+                    let bw = if op == HysteresisOperator::Combined && sign > 0.0 {
+                        let at = n_theta;
+                        n_theta += 2;
+                        Some((at, max_abs(u[j])))
+                    } else {
+                        None
+                    };
                     PathKind::Pi {
                         thresholds,
-                        sign: if lin[k] < 0.0 { -1.0 } else { 1.0 },
+                        sign,
                         plays,
+                        bw,
                     }
                 }
                 Some(HysteresisOperator::BoucWen) => {
                     let at = n_theta;
                     n_theta += 2;
-                    let range = u[j].iter().fold(0.0f64, |a, v| a.max(v.abs())).max(1e-300);
-                    PathKind::BoucWen { at, range }
+                    PathKind::BoucWen {
+                        at,
+                        range: max_abs(u[j]),
+                    }
                 }
             };
             paths.push(FitPath { input: j, kind });
@@ -258,13 +278,20 @@ impl<'a> OutputProblem<'a> {
             cons.push(false);
             match &p.kind {
                 PathKind::Linear => {}
-                PathKind::Pi { sign, plays, .. } => {
+                PathKind::Pi {
+                    sign, plays, bw, ..
+                } => {
                     for z in plays {
                         if *sign > 0.0 {
                             cols.push(Cow::Borrowed(z.as_slice()));
                         } else {
                             cols.push(Cow::Owned(z.iter().map(|v| -v).collect()));
                         }
+                        cons.push(true);
+                    }
+                    if let Some((at, range)) = bw {
+                        let (b, g) = Self::bouc_wen_params(th, *at, *range);
+                        cols.push(Cow::Owned(bouc_wen_column(u, b, g)));
                         cons.push(true);
                     }
                 }
@@ -320,7 +347,11 @@ impl<'a> OutputProblem<'a> {
         let m = psi.len();
         let rows: Vec<Vec<f64>> = (0..m)
             .into_par_iter()
-            .map(|i| (0..m).map(|j| if j < i { 0.0 } else { dot(&psi[i], &psi[j]) }).collect())
+            .map(|i| {
+                (0..m)
+                    .map(|j| if j < i { 0.0 } else { dot(&psi[i], &psi[j]) })
+                    .collect()
+            })
             .collect();
         let g = DMatrix::from_fn(m, m, |i, j| if j >= i { rows[i][j] } else { rows[j][i] });
         let b = DVector::from_iterator(m, psi.iter().map(|c| dot(c, self.y)));
@@ -365,7 +396,13 @@ impl<'a> OutputProblem<'a> {
         for path in &self.paths {
             let ncols = match &path.kind {
                 PathKind::Linear => 1,
-                PathKind::Pi { plays, .. } => 1 + plays.len(),
+                PathKind::Pi { plays, bw, .. } => match bw {
+                    None => 1 + plays.len(),
+                    Some((at, range)) => {
+                        bw_cols.push((k + 1 + plays.len(), *at, *range, path.input));
+                        2 + plays.len()
+                    }
+                },
                 PathKind::BoucWen { at, range } => {
                     bw_cols.push((k + 1, *at, *range, path.input));
                     2
@@ -398,7 +435,10 @@ impl<'a> OutputProblem<'a> {
                     let d1 = self.dynamics_of(&t2).unwrap_or(d0);
                     let a = self.chain(&ws, None, Some(&d0));
                     let b = self.chain(&ws, None, Some(&d1));
-                    (q, b.iter().zip(&a).map(|(b, a)| (b - a) / FD_STEP).collect())
+                    (
+                        q,
+                        b.iter().zip(&a).map(|(b, a)| (b - a) / FD_STEP).collect(),
+                    )
                 }));
             }
         }
@@ -483,6 +523,9 @@ impl<'a> OutputProblem<'a> {
             .iter()
             .filter_map(|p| match p.kind {
                 PathKind::BoucWen { at, .. } => Some(at),
+                PathKind::Pi {
+                    bw: Some((at, _)), ..
+                } => Some(at),
                 _ => None,
             })
             .collect();
@@ -522,9 +565,7 @@ impl<'a> OutputProblem<'a> {
                     let mut t = th.clone();
                     t[0] = log_bounded_inv(f, self.f_bounds.0, self.f_bounds.1);
                     t[1] = log_bounded_inv(z, self.z_bounds.0, self.z_bounds.1);
-                    coarse
-                        .eval(&t, true)
-                        .map_or(f64::INFINITY, |e| e.cost)
+                    coarse.eval(&t, true).map_or(f64::INFINITY, |e| e.cost)
                 })
                 .collect();
             let best = (0..grid.len())
@@ -548,7 +589,10 @@ impl<'a> OutputProblem<'a> {
                     HysteresisSpec::Linear(LinearSpec { gain: coef[k - 1] })
                 }
                 PathKind::Pi {
-                    thresholds, sign, ..
+                    thresholds,
+                    sign,
+                    bw,
+                    ..
                 } => {
                     let n = thresholds.len();
                     let spec = PrandtlIshlinskiiSpec {
@@ -559,6 +603,25 @@ impl<'a> OutputProblem<'a> {
                         dead_zones: None,
                     };
                     k += 1 + n;
+                    if let Some((at, range)) = bw {
+                        let a = coef[k];
+                        k += 1;
+                        if a > 0.0 {
+                            let (b, g) = Self::bouc_wen_params(th, *at, *range);
+                            paths.push(PathSpec {
+                                input: input.clone(),
+                                hysteresis: HysteresisSpec::BoucWen(BoucWenSpec {
+                                    d: 0.0,
+                                    a,
+                                    b,
+                                    gamma: g,
+                                    n: 1.0,
+                                    initial_h: 0.0,
+                                }),
+                                dynamics: None,
+                            });
+                        }
+                    }
                     HysteresisSpec::PrandtlIshlinskii(spec)
                 }
                 PathKind::BoucWen { at, range } => {
@@ -720,7 +783,9 @@ pub(crate) fn levenberg_marquardt(
                 eval: ev,
                 iterations: it,
                 converged: true,
-                message: "no step lowers the cost further (a minimum to the precision of the Jacobian)".into(),
+                message:
+                    "no step lowers the cost further (a minimum to the precision of the Jacobian)"
+                        .into(),
             });
         }
         if small >= 2 {

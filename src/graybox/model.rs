@@ -164,12 +164,11 @@ impl FittedGreyBox {
 
     /// The model file's text (pretty JSON); refuses non-finite numbers.
     pub fn to_json(&self) -> Result<String, GreyBoxError> {
-        let text = serde_json::to_string_pretty(&self.to_file()).map_err(|e| {
-            GreyBoxError::NonFinite {
+        let text =
+            serde_json::to_string_pretty(&self.to_file()).map_err(|e| GreyBoxError::NonFinite {
                 output: self.plant.outputs.join(","),
                 what: e.to_string(),
-            }
-        })?;
+            })?;
         // serde_json writes NaN and infinity as null: refuse a plant with a non-finite number
         let v: serde_json::Value = serde_json::from_str(&text).unwrap_or_default();
         if has_null_number(&v["plant"]) || !self.fit.rmse.is_finite() {
