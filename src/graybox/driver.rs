@@ -246,11 +246,22 @@ impl GreyBoxConfig {
                 input_names.clone(),
                 train.ts,
                 &st,
-                self.options.plays.min(5),
+                self.options.plays.min(3),
             );
+            let t0 = Instant::now();
             let th0 = prob.initial(&coarse);
             drop(coarse);
+            let t1 = Instant::now();
             let res = levenberg_marquardt(&prob, th0, &self.options)?;
+            if std::env::var_os("HYSTBENCH_TRACE").is_some() {
+                eprintln!(
+                    "{}: initialisation {:.2} s, Levenberg-Marquardt {:.2} s ({} iterations)",
+                    out.name,
+                    (t1 - t0).as_secs_f64(),
+                    t1.elapsed().as_secs_f64(),
+                    res.iterations
+                );
+            }
             outputs.push(prob.output_spec(&res.theta, &res.eval.coef));
             runs.push(res);
         }

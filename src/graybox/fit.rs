@@ -73,6 +73,76 @@ struct FitPath {
     kind: PathKind,
 }
 
+/// Creep (Kelvin-Voigt chain, exact ZOH) then dynamics (second order, exact ZOH) with the
+/// coefficients of `effect::creep` and `effect::dynamics`, in one pass without allocation
+/// per sample.
+struct LtiChain {
+    a: Vec<f64>,
+    g: Vec<f64>,
+    dynamics: Option<([f64; 4], [f64; 2])>,
+    invalid: bool,
+}
+
+impl LtiChain {
+    fn new(ts: f64, creep: Option<&Creep>, dynamics: Option<&Dynamics>) -> LtiChain {
+        let (a, g) = match creep {
+            Some(c) if c.gains.iter().any(|g| *g != 0.0) => (
+                c.time_constants_s.iter().map(|t| (-ts / t).exp()).collect(),
+                c.gains.clone(),
+            ),
+            _ => (Vec::new(), Vec::new()),
+        };
+        let mut invalid = false;
+        let dynamics = dynamics.and_then(|d| match d.discretise(ts) {
+            Ok((phi, gam)) => Some((
+                [phi[(0, 0)], phi[(0, 1)], phi[(1, 0)], phi[(1, 1)]],
+                [gam[0], gam[1]],
+            )),
+            Err(_) => {
+                invalid = true;
+                None
+            }
+        });
+        LtiChain {
+            a,
+            g,
+            dynamics,
+            invalid,
+        }
+    }
+
+    fn apply(&self, x: &[f64]) -> Vec<f64> {
+        if self.invalid {
+            return vec![f64::NAN; x.len()];
+        }
+        let mut out = x.to_vec();
+        if !self.a.is_empty() {
+            let mut z = vec![0.0; self.a.len()];
+            for v in out.iter_mut() {
+                let w = *v;
+                let mut o = w;
+                for ((zi, &ai), &gi) in z.iter_mut().zip(&self.a).zip(&self.g) {
+                    o += gi * *zi;
+                    *zi = ai * *zi + (1.0 - ai) * w;
+                }
+                *v = o;
+            }
+        }
+        if let Some((p, gm)) = self.dynamics {
+            let (mut x0, mut x1) = (0.0, 0.0);
+            for v in out.iter_mut() {
+                let w = *v;
+                *v = x0;
+                let n0 = p[0] * x0 + p[1] * x1 + gm[0] * w;
+                let n1 = p[2] * x0 + p[3] * x1 + gm[1] * w;
+                x0 = n0;
+                x1 = n1;
+            }
+        }
+        out
+    }
+}
+
 /// Everything needed to evaluate the model of one output for a parameter vector.
 pub(crate) struct OutputProblem<'a> {
     pub name: String,
@@ -115,8 +185,25 @@ fn least_squares(cols: &[&[f64]], y: &[f64]) -> Vec<f64> {
     nnls_gram(&g, &b, &vec![false; m]).coef
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+/// Dot product with eight partial sums (lets the compiler vectorise; order is fixed, so the
+/// result is the same on every run).
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut acc = [0.0f64; 8];
+    let ca = a.chunks_exact(8);
+    let cb = b.chunks_exact(8);
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for i in 0..8 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    let mut s = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
+    for (x, y) in ra.iter().zip(rb) {
+        s += x * y;
+    }
+    s
 }
 
 /// Thresholds spread over the input range: r_k = k R / (n + 1), k = 1..n, R = max |u|.
@@ -307,19 +394,9 @@ impl<'a> OutputProblem<'a> {
         (cols, cons)
     }
 
-    /// Creep then dynamics on one signal.
+    /// Creep then dynamics on one signal (the plant's recursions, fused in one pass).
     fn chain(&self, x: &[f64], creep: Option<&Creep>, dynamics: Option<&Dynamics>) -> Vec<f64> {
-        let mut v = match creep {
-            Some(c) if c.gains.iter().any(|g| *g != 0.0) => c.operator(self.ts).apply(x),
-            _ => x.to_vec(),
-        };
-        if let Some(d) = dynamics {
-            match d.operator(self.ts) {
-                Ok(mut op) => v = op.apply(&v),
-                Err(_) => v.fill(f64::NAN),
-            }
-        }
-        v
+        LtiChain::new(self.ts, creep, dynamics).apply(x)
     }
 
     /// Evaluate: basis through the chain, (non-negative) least squares, residual.
@@ -333,6 +410,7 @@ impl<'a> OutputProblem<'a> {
             None
         };
         let last = phi.len() - 1;
+        let lti = LtiChain::new(self.ts, creep.as_ref(), dynamics.as_ref());
         let psi: Vec<Vec<f64>> = phi
             .par_iter()
             .enumerate()
@@ -340,7 +418,7 @@ impl<'a> OutputProblem<'a> {
                 if k == last {
                     col.to_vec()
                 } else {
-                    self.chain(col, creep.as_ref(), dynamics.as_ref())
+                    lti.apply(col)
                 }
             })
             .collect();
