@@ -152,3 +152,201 @@ fn fits_a_40k_sample_mimo_record_at_1khz() {
     let ratio = without["rmse"].as_f64().unwrap() / full["rmse"].as_f64().unwrap();
     assert!(ratio >= 3.0, "without coupling: ratio {ratio}");
 }
+
+fn fit_err(dir: &Path, data: &Path, effects: &str) -> String {
+    let out = dir.join("bad.json");
+    let o = run(&[
+        "fit",
+        "--data",
+        data.to_str().unwrap(),
+        "--effects",
+        effects,
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success(), "{effects} should fail");
+    assert!(!out.exists(), "nothing may be written");
+    stderr(&o)
+}
+
+/// A short csv: `n` samples of a sine of frequency `f` (Hz) at 1 kHz, y = 0.8 u.
+fn csv(dir: &Path, name: &str, n: usize, f: f64, two: bool) -> PathBuf {
+    let mut s = if two {
+        "t,u1,u2,y1,y2\n".to_string()
+    } else {
+        "t,u,y\n".to_string()
+    };
+    for k in 0..n {
+        let t = k as f64 * 1e-3;
+        let u = 10.0 * (2.0 * std::f64::consts::PI * f * t).sin();
+        if two {
+            s += &format!("{t},{u},{},{},{}\n", 0.5 * u, 0.8 * u, 0.3 * u);
+        } else {
+            s += &format!("{t},{u},{}\n", 0.8 * u);
+        }
+    }
+    write(dir, name, &s)
+}
+
+#[test]
+fn bad_input_gives_clear_errors_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let siso = csv(d, "siso.csv", 3000, 2.0, false);
+    let e = fit_err(d, &siso, "hysteresis,friction");
+    assert!(
+        e.contains("unknown effect `friction`")
+            && e.contains("hysteresis, creep, dynamics, coupling"),
+        "{e}"
+    );
+    let e = fit_err(d, &siso, "hysteresis,coupling");
+    assert!(
+        e.contains("coupling") && e.contains("several inputs"),
+        "{e}"
+    );
+    // 3 s at 1 kHz: creep needs two decades between 5 ms and a third of the record
+    let short = csv(d, "short.csv", 300, 20.0, false);
+    let e = fit_err(d, &short, "hysteresis,creep");
+    assert!(e.contains("creep needs") && e.contains("samples"), "{e}");
+    // a fast sine and no holds: creep cannot be seen
+    let fast = csv(d, "fast.csv", 40000, 100.0, false);
+    let e = fit_err(d, &fast, "hysteresis,creep");
+    assert!(
+        e.contains("poorly excited for creep") && e.contains("holds"),
+        "{e}"
+    );
+    // a ramp never reverses: no hysteresis loop
+    let mut ramp = "t,u,y\n".to_string();
+    for k in 0..2000 {
+        ramp += &format!(
+            "{},{},{}\n",
+            k as f64 * 1e-3,
+            k as f64 * 0.01,
+            k as f64 * 0.008
+        );
+    }
+    let ramp = write(d, "ramp.csv", &ramp);
+    let e = fit_err(d, &ramp, "hysteresis");
+    assert!(
+        e.contains("poorly excited for hysteresis") && e.contains("reverses"),
+        "{e}"
+    );
+    let tiny = csv(d, "tiny.csv", 50, 2.0, false);
+    let e = fit_err(d, &tiny, "hysteresis");
+    assert!(e.contains("50 samples") && e.contains("at least"), "{e}");
+    // columns not in the record
+    let out = d.join("m.json");
+    let o = run(&[
+        "fit",
+        "--data",
+        siso.to_str().unwrap(),
+        "--effects",
+        "hysteresis",
+        "--inputs",
+        "v",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success() && !out.exists());
+    assert!(stderr(&o).contains("`v`"), "{}", stderr(&o));
+    // without --force an existing model is kept
+    std::fs::write(&out, "keep").unwrap();
+    let o = run(&[
+        "fit",
+        "--data",
+        siso.to_str().unwrap(),
+        "--effects",
+        "none",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), "keep");
+    let o = run(&[
+        "fit",
+        "--data",
+        siso.to_str().unwrap(),
+        "--effects",
+        "none",
+        "--out",
+        out.to_str().unwrap(),
+        "--force",
+        "--train-fraction",
+        "0.5",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let m = FittedGreyBox::load(&out).unwrap();
+    assert_eq!(m.fit.train_samples, 1500);
+    assert!(m.fit.scored_on.contains("held-out"));
+    assert!(m.fit.r2.unwrap() > 0.999999);
+}
+
+#[test]
+fn model_files_round_trip_and_damaged_ones_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = csv(d, "mimo.csv", 4000, 3.0, true);
+    let out = d.join("m.json");
+    let o = run(&[
+        "fit",
+        "--data",
+        data.to_str().unwrap(),
+        "--effects",
+        "hysteresis,dynamics",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["outputs"]["y1"]["rmse"].is_number() && v["outputs"]["y2"]["r2"].is_number());
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(!text.contains("NaN") && !text.contains("null,"));
+    let file: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(file["format"], "hystbench-greybox");
+    assert_eq!(file["version"], 1);
+    assert_eq!(
+        file["effects"],
+        serde_json::json!(["hysteresis", "dynamics"])
+    );
+    assert_eq!(file["inputs"], serde_json::json!(["u1", "u2"]));
+    for key in [
+        "rmse",
+        "r2",
+        "outputs",
+        "iterations",
+        "converged",
+        "seconds",
+        "data_file",
+        "sampling_period_s",
+    ] {
+        assert!(file["fit"].get(key).is_some(), "fit.{key} missing");
+    }
+    // the plant inside is a plant file
+    let plant_path = write(d, "plant.json", &file["plant"].to_string());
+    let plant = hystbench::plant::Plant::from_file(&plant_path).unwrap();
+    assert_eq!(plant.outputs, ["y1", "y2"]);
+    // the loaded model simulates the record as well as the fit said
+    let m = FittedGreyBox::load(&out).unwrap();
+    let rec = hystbench::data::read_csv(&data).unwrap();
+    let io = hystbench::data::IoRecord::from_record(&rec, None, None, true).unwrap();
+    let s = m.scores(&io, 0..io.len()).unwrap();
+    assert!((s[0].rmse - m.fit.outputs[0].rmse).abs() < 1e-12);
+    // another format, another version, damaged text
+    let other = text.replace("hystbench-greybox", "hystbench-narx");
+    let e = FittedGreyBox::parse(&out, &other).unwrap_err().to_string();
+    assert!(e.contains("not a grey-box model file"), "{e}");
+    let v2 = text.replace("\"version\": 1", "\"version\": 2");
+    let e = FittedGreyBox::parse(&out, &v2).unwrap_err().to_string();
+    assert!(e.contains("version 2 is not supported"), "{e}");
+    let e = FittedGreyBox::parse(&out, &text[..text.len() / 2])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("line") && e.contains("not a valid model file"),
+        "{e}"
+    );
+    let bad = text.replacen("\"damping_ratio\": ", "\"damping_ratio\": -", 1);
+    let e = FittedGreyBox::parse(&out, &bad).unwrap_err().to_string();
+    assert!(e.contains("damping_ratio"), "{e}");
+}

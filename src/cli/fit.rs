@@ -14,7 +14,7 @@ use std::path::PathBuf;
 /// the fitted model from rest.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Effects: hysteresis (Prandtl-Ishlinskii; or name the operator: prandtl-ishlinskii, bouc-wen), creep, dynamics, coupling; `none` for a linear static model.\nThe fit uses the whole record (your choice of data) unless --train-fraction F is given.\nExample: hystbench fit --data d.csv --effects hysteresis,creep,dynamics --out model.json"
+    after_help = "Effects: hysteresis (default operator: Prandtl-Ishlinskii plus one Bouc-Wen term; or name one: prandtl-ishlinskii, bouc-wen), creep, dynamics, coupling; `none` for a linear static model.\nThe fit uses the whole record (your choice of data) unless --train-fraction F is given.\nExample: hystbench fit --data d.csv --effects hysteresis,creep,dynamics --out model.json"
 )]
 pub struct Args {
     /// Record (CSV with a time column `t`, inputs `u` or `u1,u2..`, outputs `y` or `y1,y2..`).
@@ -84,7 +84,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let io = IoRecord::from_record(&rec, Some(&a.inputs), Some(&a.outputs), true)?;
     let model = cfg
         .fit(&io)
-        .with_context(|| format!("fitting {} to {}", cfg.effect_list(), a.data.display()))?;
+        .with_context(|| format!("fitting {}", cfg.effect_list()))?;
     model
         .save(&a.out, a.force)
         .with_context(|| format!("writing {}", a.out.display()))?;

@@ -10,13 +10,13 @@ use crate::plant::{PlantSpec, Units};
 use std::time::Instant;
 
 /// Creep time constants: one per decade (powers of ten) from about 5 samples to about a third
-/// of the record. `Err(needed samples)` when fewer than two decades fit.
+/// of the record. `Err(needed samples)` when fewer than three (two decades) fit.
 pub fn creep_time_constants(samples: usize, ts: f64) -> Result<Vec<f64>, usize> {
     let k_min = (5.0 * ts).log10().ceil() as i32;
     let span = samples as f64 * ts / 3.0;
     let k_max = span.log10().round() as i32;
-    if k_max < k_min + 1 {
-        let needed = (3.0 * 10f64.powf(k_min as f64 + 0.5) / ts).ceil() as usize;
+    if k_max < k_min + 2 {
+        let needed = (3.0 * 10f64.powf(k_min as f64 + 1.5) / ts).ceil() as usize;
         return Err(needed);
     }
     Ok((k_min..=k_max).map(|k| 10f64.powi(k)).collect())
@@ -182,7 +182,7 @@ impl GreyBoxConfig {
             needed,
             effects: effects.clone(),
             why: format!(
-                "creep needs time constants over at least two decades between 5 samples ({} s) and a third of the record ({} s); record longer holds",
+                "creep needs time constants over at least two decades between 5 samples ({:.3e} s) and a third of the record ({:.3e} s); record longer holds",
                 5.0 * rec.ts,
                 n as f64 * rec.ts / 3.0
             ),
