@@ -37,7 +37,7 @@ pub struct Args {
     #[arg(long)]
     pub train_fraction: Option<f64>,
     /// Play operators per Prandtl-Ishlinskii path.
-    #[arg(long, default_value_t = 19)]
+    #[arg(long, default_value_t = 39)]
     pub plays: usize,
     /// Overwrite an existing model file.
     #[arg(long)]

@@ -49,7 +49,7 @@ pub struct FitOptions {
 impl Default for FitOptions {
     fn default() -> Self {
         FitOptions {
-            plays: 19,
+            plays: 39,
             max_iterations: 100,
             tolerance: 1e-10,
             train_fraction: 1.0,

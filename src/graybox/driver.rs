@@ -1,7 +1,7 @@
 //! The driver: checks a record against a configuration, sets up one problem per output, runs
 //! the initialisation and Levenberg-Marquardt, and scores the fitted plant by simulating it.
 
-use super::fit::{levenberg_marquardt, OutputProblem, OutputStructure};
+use super::fit::{levenberg_marquardt, LmResult, OutputProblem, OutputStructure};
 use super::{
     FitSummary, FittedGreyBox, GreyBoxConfig, GreyBoxError, HysteresisOperator, OutputFit,
 };
@@ -249,10 +249,27 @@ impl GreyBoxConfig {
                 self.options.plays.min(3),
             );
             let t0 = Instant::now();
-            let th0 = prob.initial(&coarse);
+            let starts = prob.initial(&coarse, 3);
             drop(coarse);
             let t1 = Instant::now();
-            let res = levenberg_marquardt(&prob, th0, &self.options)?;
+            // stage 1: creep held at zero, from each start; stage 2: everything, from the best
+            let stage1 = prob.without_creep();
+            let mut best: Option<LmResult> = None;
+            let mut iterations = 0;
+            for th0 in starts {
+                let r = levenberg_marquardt(&prob, th0, &stage1, &self.options)?;
+                iterations += r.iterations;
+                if best.as_ref().is_none_or(|b| r.eval.cost < b.eval.cost) {
+                    best = Some(r);
+                }
+            }
+            let mut res = best.expect("at least one start");
+            if stage1.iter().any(|f| !f) {
+                let all = vec![true; prob.n_theta()];
+                res = levenberg_marquardt(&prob, res.theta, &all, &self.options)?;
+                iterations += res.iterations;
+            }
+            res.iterations = iterations;
             if std::env::var_os("HYSTBENCH_TRACE").is_some() {
                 eprintln!(
                     "{}: initialisation {:.2} s, Levenberg-Marquardt {:.2} s ({} iterations)",

@@ -590,7 +590,18 @@ impl<'a> OutputProblem<'a> {
 
     /// Initial nonlinear parameters: Bouc-Wen from a grid of static fits, dynamics from a grid
     /// of natural frequencies and damping ratios (on a reduced problem `coarse`), creep at 0.
-    pub fn initial(&self, coarse: &OutputProblem) -> Vec<f64> {
+    /// Which parameters are not creep gains (the first Levenberg-Marquardt stage holds the
+    /// creep gains at zero so that the dynamics settle first).
+    pub fn without_creep(&self) -> Vec<bool> {
+        (0..self.n_theta)
+            .map(|i| i < self.creep_at || i >= self.creep_at + self.taus.len())
+            .collect()
+    }
+
+    /// Starting points: Bouc-Wen from a grid of static fits, then the `starts` best local
+    /// minima of a grid of natural frequencies and damping ratios (on a reduced problem
+    /// `coarse`), creep at 0.
+    pub fn initial(&self, coarse: &OutputProblem, starts: usize) -> Vec<Vec<f64>> {
         let mut th = vec![0.0; self.n_theta];
         if self.dynamics {
             th[0] = log_bounded_inv(0.1 / self.ts, self.f_bounds.0, self.f_bounds.1);
@@ -646,13 +657,37 @@ impl<'a> OutputProblem<'a> {
                     coarse.eval(&t, true).map_or(f64::INFINITY, |e| e.cost)
                 })
                 .collect();
-            let best = (0..grid.len())
-                .min_by(|&a, &b| costs[a].total_cmp(&costs[b]))
-                .unwrap_or(0);
-            th[0] = log_bounded_inv(grid[best].0, self.f_bounds.0, self.f_bounds.1);
-            th[1] = log_bounded_inv(grid[best].1, self.z_bounds.0, self.z_bounds.1);
+            // best damping per frequency, then the local minima along the frequency axis
+            let per_f: Vec<usize> = (0..=steps)
+                .map(|i| {
+                    (4 * i..4 * i + 4)
+                        .min_by(|&a, &b| costs[a].total_cmp(&costs[b]))
+                        .unwrap_or(4 * i)
+                })
+                .collect();
+            let c = |i: usize| costs[per_f[i]];
+            let mut minima: Vec<usize> = (0..per_f.len())
+                .filter(|&i| {
+                    (i == 0 || c(i) <= c(i - 1)) && (i + 1 == per_f.len() || c(i) <= c(i + 1))
+                })
+                .map(|i| per_f[i])
+                .collect();
+            minima.sort_by(|&a, &b| costs[a].total_cmp(&costs[b]));
+            minima.truncate(starts.max(1));
+            if minima.is_empty() {
+                minima.push(0);
+            }
+            return minima
+                .into_iter()
+                .map(|best| {
+                    let mut t = th.clone();
+                    t[0] = log_bounded_inv(grid[best].0, self.f_bounds.0, self.f_bounds.1);
+                    t[1] = log_bounded_inv(grid[best].1, self.z_bounds.0, self.z_bounds.1);
+                    t
+                })
+                .collect();
         }
-        th
+        vec![th]
     }
 
     /// The fitted output as a plant output spec.
@@ -758,6 +793,7 @@ pub(crate) struct LmResult {
 pub(crate) fn levenberg_marquardt(
     prob: &OutputProblem,
     theta0: Vec<f64>,
+    free: &[bool],
     opts: &FitOptions,
 ) -> Result<LmResult, GreyBoxError> {
     let non_finite = |what: &str| GreyBoxError::NonFinite {
@@ -768,7 +804,8 @@ pub(crate) fn levenberg_marquardt(
     let mut ev = prob
         .eval(&th, true)
         .ok_or_else(|| non_finite("the initial model"))?;
-    let p = prob.n_theta();
+    let idx: Vec<usize> = (0..prob.n_theta()).filter(|&i| free[i]).collect();
+    let p = idx.len();
     if p == 0 {
         return Ok(LmResult {
             theta: th,
@@ -793,7 +830,7 @@ pub(crate) fn levenberg_marquardt(
                 message: "the residual is zero to rounding".into(),
             });
         }
-        let j = prob.jacobian(&th, &ev);
+        let j = prob.jacobian(&th, &ev).select_columns(idx.iter());
         let a = j.tr_mul(&j);
         let g = j.tr_mul(&DVector::from_column_slice(&ev.r));
         for i in 0..p {
@@ -833,11 +870,10 @@ pub(crate) fn levenberg_marquardt(
                 }
                 continue;
             };
-            let t_new: Vec<f64> = th
-                .iter()
-                .zip(step.iter())
-                .map(|(t, s)| (t + s).clamp(-LIMIT, LIMIT))
-                .collect();
+            let mut t_new = th.clone();
+            for (k, &i) in idx.iter().enumerate() {
+                t_new[i] = (th[i] + step[k]).clamp(-LIMIT, LIMIT);
+            }
             match prob.eval(&t_new, true) {
                 Some(e) if e.cost < ev.cost => {
                     let rel = (ev.cost - e.cost) / ev.cost;
