@@ -15,6 +15,7 @@ pub mod cli;
 pub mod data;
 pub mod diagnose;
 pub mod effect;
+pub mod graybox;
 pub mod metrics;
 pub mod model;
 pub mod plant;

@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 pub mod compare;
 pub mod demo;
 pub mod diagnose;
+pub mod fit;
 pub mod plot;
 pub mod simulate;
 
@@ -32,6 +33,8 @@ pub enum Command {
     Simulate(simulate::Args),
     /// Draw a figure (PNG or SVG): loop, time, residual-loop, parity, spectrum, sweep, ladder.
     Plot(plot::PlotArgs),
+    /// Fit a grey-box model (hysteresis, creep, dynamics, coupling) to a record.
+    Fit(fit::Args),
 }
 
 /// Print to standard output, ending with a newline; a closed pipe (`| head`) is not an error.
@@ -53,6 +56,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Diagnose(a) => diagnose::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Plot(args) => plot::run(args),
+        Command::Fit(a) => fit::run(a),
     }
 }
 

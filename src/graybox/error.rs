@@ -1,0 +1,93 @@
+use crate::data::DataError;
+use crate::plant::PlantError;
+use std::path::PathBuf;
+
+/// What can go wrong when configuring, fitting, reading or simulating a grey-box model.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum GreyBoxError {
+    #[error("unknown effect `{name}`; the valid effects are: {valid}")]
+    UnknownEffect { name: String, valid: String },
+    #[error("`{name}` is named twice in the effect list")]
+    RepeatedEffect { name: String },
+    #[error("two hysteresis operators are named (`{first}` and `{second}`); name one of hysteresis, prandtl-ishlinskii, bouc-wen")]
+    TwoOperators { first: String, second: String },
+    #[error(
+        "{path}: `coupling` needs a record with several inputs, but it has {inputs} ({names})"
+    )]
+    CouplingNeedsInputs {
+        path: PathBuf,
+        inputs: usize,
+        names: String,
+    },
+    #[error("{path}: output {output} (`{name}`) has no input of the same index ({inputs} inputs: {names}); add `coupling` so that every output sees every input, or select fewer outputs")]
+    NoDirectInput {
+        path: PathBuf,
+        output: usize,
+        name: String,
+        inputs: usize,
+        names: String,
+    },
+    #[error("{path}: the record has {samples} samples; fitting {effects} needs at least {needed}: {why}")]
+    TooShort {
+        path: PathBuf,
+        samples: usize,
+        needed: usize,
+        effects: String,
+        why: String,
+    },
+    #[error("{path}: input `{input}` is too poorly excited for {effect}: {why}")]
+    PoorlyExcited {
+        path: PathBuf,
+        input: String,
+        effect: String,
+        why: String,
+    },
+    #[error("{path}: the record has no output column to fit; name one with --outputs")]
+    NoOutputs { path: PathBuf },
+    #[error("{path}: `{column}` is constant; there is nothing to fit")]
+    ConstantOutput { path: PathBuf, column: String },
+    #[error("--train-fraction {value}: must be a number in (0, 1]")]
+    TrainFraction { value: f64 },
+    #[error("{what} `{name}` of the model is not in the record {path} (its columns: {available})")]
+    MissingColumn {
+        path: PathBuf,
+        what: String,
+        name: String,
+        available: String,
+    },
+    #[error(
+        "the fit of output `{output}` produced a non-finite value ({what}); nothing was written"
+    )]
+    NonFinite { output: String, what: String },
+    #[error("{path}: cannot read: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: line {line}, column {column}: not a valid model file: {message}")]
+    Json {
+        path: PathBuf,
+        line: usize,
+        column: usize,
+        message: String,
+    },
+    #[error("{path}: not a grey-box model file (`format` is {found}; expected \"hystbench-greybox\"); a NARX model or a plant file is read by other commands")]
+    WrongFormat { path: PathBuf, found: String },
+    #[error("{path}: grey-box model file version {found} is not supported; this hystbench reads version {supported}")]
+    WrongVersion {
+        path: PathBuf,
+        found: String,
+        supported: u32,
+    },
+    #[error("{path}: `{field}`: {rule}")]
+    Inconsistent {
+        path: PathBuf,
+        field: String,
+        rule: String,
+    },
+    #[error(transparent)]
+    Plant(#[from] PlantError),
+    #[error(transparent)]
+    Data(#[from] DataError),
+}

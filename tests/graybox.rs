@@ -1,0 +1,236 @@
+//! Grey-box fitting on noise-free records from the shipped plants (or plants of the same
+//! structure): R^2, physical parameters, and the RMS error with and without each effect.
+//! Long runs are `#[ignore]`: `cargo test --release --test graybox -- --ignored`.
+
+use hystbench::data::IoRecord;
+use hystbench::effect::creep::CreepSpec;
+use hystbench::effect::dynamics::DynamicsSpec;
+use hystbench::effect::hysteresis::HysteresisSpec;
+use hystbench::graybox::{FittedGreyBox, GreyBoxConfig};
+use hystbench::plant::{Plant, PlantSpec};
+use hystbench::scenario::{Scenario, ScenarioSpec};
+use hystbench::simulator::simulate_scenario;
+use std::path::PathBuf;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn plant(name: &str) -> Plant {
+    Plant::from_file(&root().join("plants").join(name)).unwrap()
+}
+
+/// A plant from a shipped one with its text edited.
+fn plant_edited(name: &str, edit: impl Fn(&mut PlantSpec)) -> Plant {
+    let p = root().join("plants").join(name);
+    let mut spec = PlantSpec::read(&p).unwrap();
+    edit(&mut spec);
+    spec.check(&p).unwrap()
+}
+
+fn scenario(json: &str) -> Scenario {
+    let p = root().join("scenarios").join("test.json");
+    ScenarioSpec::parse(&p, json).unwrap().check(&p).unwrap()
+}
+
+fn record(plant: &Plant, scenario_json: &str) -> IoRecord {
+    simulate_scenario(plant, &scenario(scenario_json), None)
+        .unwrap()
+        .record
+}
+
+fn fit(rec: &IoRecord, effects: &str) -> FittedGreyBox {
+    let cfg = GreyBoxConfig::from_effect_list(effects).unwrap();
+    let t = std::time::Instant::now();
+    let m = cfg.fit(rec).unwrap();
+    eprintln!(
+        "fit {effects:<32} rmse {:.3e} r2 {:?} iterations {} converged {} ({:.2} s) {}",
+        m.fit.rmse,
+        m.fit.r2,
+        m.fit.iterations,
+        m.fit.converged,
+        t.elapsed().as_secs_f64(),
+        m.fit.outputs[0].message
+    );
+    m
+}
+
+fn rel(a: f64, b: f64) -> f64 {
+    (a - b).abs() / b.abs()
+}
+
+/// 1-DoF at 10 kHz: nested loops (decaying sine) plus small random steps that ring the mode.
+const SCENARIO_10K: &str = r#"{
+  "name": "test_10k", "sampling_period_s": 0.0001, "samples": 15000, "noise_std": 0.0, "seed": 7,
+  "inputs": [{"sum": [
+     {"decaying_sine": {"amplitude": 35.0, "frequency_hz": 6.0, "decay_time_s": 0.7}},
+     {"random_steps": {"amplitude": 4.0, "min_hold_s": 0.005, "max_hold_s": 0.03}}
+  ]}]
+}"#;
+
+#[test]
+fn bouc_wen_dynamics_recovered() {
+    let p = plant("bouc_wen_piezo.json");
+    let rec = record(&p, SCENARIO_10K);
+    let m = fit(&rec, "bouc-wen,dynamics");
+    let r2 = m.fit.r2.unwrap();
+    let out = &m.plant.spec.outputs[0];
+    eprintln!("{}", serde_json::to_string(out).unwrap());
+    assert!(r2 >= 0.9999, "R^2 {r2}");
+    let HysteresisSpec::BoucWen(bw) = &out.paths[0].hysteresis else {
+        panic!("not Bouc-Wen")
+    };
+    let d = out.dynamics.unwrap();
+    for (name, got, want) in [
+        ("d", bw.d, 0.8),
+        ("A", bw.a, 0.3),
+        ("B", bw.b, 0.02),
+        ("Gamma", bw.gamma, 0.01),
+        ("f_n", d.natural_frequency_hz, 800.0),
+        ("zeta", d.damping_ratio, 0.03),
+    ] {
+        eprintln!("{name}: {got} vs {want} ({:.3} %)", 100.0 * rel(got, want));
+        assert!(rel(got, want) < 0.02, "{name}: {got} vs {want}");
+    }
+}
+
+/// A plant of the creep_piezo structure at 1 kHz: Bouc-Wen -> creep (0.1, 1, 10 s; 2 %/decade)
+/// -> a 120 Hz mode.
+fn creep_plant() -> Plant {
+    plant_edited("creep_piezo.json", |s| {
+        let o = &mut s.outputs[0];
+        o.creep = Some(CreepSpec::from_log_rate(2.0, vec![0.1, 1.0, 10.0]));
+        o.dynamics = Some(DynamicsSpec {
+            natural_frequency_hz: 120.0,
+            damping_ratio: 0.05,
+            dc_gain: 1.0,
+        });
+    })
+}
+
+/// 1-DoF at 1 kHz, 30 s: nested loops, held steps (creep), random steps (dynamics).
+const SCENARIO_1K: &str = r#"{
+  "name": "test_1k", "sampling_period_s": 0.001, "samples": 30000, "noise_std": 0.0, "seed": 5,
+  "inputs": [{"concat": [
+    {"duration_s": 8.0, "excitation": {"decaying_sine": {"amplitude": 35.0, "frequency_hz": 1.0, "decay_time_s": 4.0}}},
+    {"duration_s": 12.0, "excitation": {"staircase": {"levels": [20.0, -10.0, 30.0, -25.0], "hold_s": 3.0}}},
+    {"duration_s": 10.0, "excitation": {"random_steps": {"amplitude": 30.0, "min_hold_s": 0.05, "max_hold_s": 1.5}}}
+  ]}]
+}"#;
+
+/// Creep rate in % per decade: slope of the step response between 0.1 s and 10 s.
+fn creep_rate(c: &CreepSpec) -> f64 {
+    let c = c.check().unwrap();
+    100.0 * (c.step_response(10.0) - c.step_response(0.1)) / 2.0
+}
+
+#[test]
+fn bouc_wen_creep_dynamics_recovered() {
+    let p = creep_plant();
+    let rec = record(&p, SCENARIO_1K);
+    let m = fit(&rec, "bouc-wen,creep,dynamics");
+    let r2 = m.fit.r2.unwrap();
+    assert!(r2 >= 0.9999, "R^2 {r2}");
+    let out = &m.plant.spec.outputs[0];
+    let truth = &p.spec.outputs[0];
+    let HysteresisSpec::BoucWen(bw) = &out.paths[0].hysteresis else {
+        panic!("not Bouc-Wen")
+    };
+    let d = out.dynamics.unwrap();
+    for (name, got, want) in [
+        ("d", bw.d, 0.8),
+        ("A", bw.a, 0.3),
+        ("B", bw.b, 0.02),
+        ("Gamma", bw.gamma, 0.01),
+        ("f_n", d.natural_frequency_hz, 120.0),
+        ("zeta", d.damping_ratio, 0.05),
+        (
+            "creep %/decade",
+            creep_rate(out.creep.as_ref().unwrap()),
+            creep_rate(truth.creep.as_ref().unwrap()),
+        ),
+    ] {
+        eprintln!("{name}: {got} vs {want} ({:.4} %)", 100.0 * rel(got, want));
+        assert!(rel(got, want) < 0.02, "{name}: {got} vs {want}");
+    }
+}
+
+#[test]
+fn prandtl_ishlinskii_dynamics_recovered() {
+    let p = plant("prandtl_ishlinskii_piezo.json");
+    let rec = record(&p, SCENARIO_10K);
+    for effects in ["prandtl-ishlinskii,dynamics", "hysteresis,dynamics"] {
+        let m = fit(&rec, effects);
+        let r2 = m.fit.r2.unwrap();
+        assert!(r2 >= 0.9999, "{effects}: R^2 {r2}");
+        let d = m.plant.spec.outputs[0].dynamics.unwrap();
+        assert!(rel(d.natural_frequency_hz, 800.0) < 0.02, "{d:?}");
+        assert!(rel(d.damping_ratio, 0.03) < 0.02, "{d:?}");
+    }
+}
+
+/// 2-DoF at 5 kHz, 2 s: both inputs with nested loops and small steps.
+const SCENARIO_2DOF: &str = r#"{
+  "name": "test_2dof", "sampling_period_s": 0.0002, "samples": 10000, "noise_std": 0.0, "seed": 11,
+  "inputs": [
+    {"sum": [{"decaying_sine": {"amplitude": 35.0, "frequency_hz": 4.0, "decay_time_s": 1.0}},
+             {"random_steps": {"amplitude": 4.0, "min_hold_s": 0.005, "max_hold_s": 0.03}}]},
+    {"sum": [{"decaying_sine": {"amplitude": 35.0, "frequency_hz": 5.5, "decay_time_s": 1.2, "phase_rad": 1.0}},
+             {"random_steps": {"amplitude": 4.0, "min_hold_s": 0.005, "max_hold_s": 0.03}}]}
+  ]
+}"#;
+
+#[test]
+fn coupled_bouc_wen_recovered() {
+    let p = plant("piezo_2dof.json");
+    let rec = record(&p, SCENARIO_2DOF);
+    let m = fit(&rec, "bouc-wen,dynamics,coupling");
+    for (o, (got, want)) in m.plant.spec.outputs.iter().zip(&p.spec.outputs).enumerate() {
+        let r2 = m.fit.outputs[o].r2.unwrap();
+        assert!(r2 >= 0.9999, "output {o}: R^2 {r2}");
+        for (k, (gp, wp)) in got.paths.iter().zip(&want.paths).enumerate() {
+            let (HysteresisSpec::BoucWen(g), HysteresisSpec::BoucWen(w)) =
+                (&gp.hysteresis, &wp.hysteresis)
+            else {
+                panic!("output {o} path {k}: not Bouc-Wen")
+            };
+            for (name, a, b) in [
+                ("d", g.d, w.d),
+                ("A", g.a, w.a),
+                ("B", g.b, w.b),
+                ("Gamma", g.gamma, w.gamma),
+            ] {
+                eprintln!("y{} path {k} {name}: {a} vs {b}", o + 1);
+                assert!(rel(a, b) < 0.02, "output {o} path {k} {name}: {a} vs {b}");
+            }
+        }
+        let (g, w) = (got.dynamics.unwrap(), want.dynamics.unwrap());
+        assert!(rel(g.natural_frequency_hz, w.natural_frequency_hz) < 0.02);
+        assert!(rel(g.damping_ratio, w.damping_ratio) < 0.02);
+    }
+}
+
+fn rms_ratio(rec: &IoRecord, with: &str, without: &str) -> f64 {
+    let a = fit(rec, with).fit.rmse;
+    let b = fit(rec, without).fit.rmse;
+    eprintln!("RMS without / with: {b:.3e} / {a:.3e} = {:.3e}", b / a);
+    b / a
+}
+
+/// For each effect E: on a record from a plant with E (and the others), the model fitted
+/// without E has an RMS error at least 3x that of the model fitted with E (default operator).
+#[test]
+fn each_effect_cuts_the_rms_error_at_least_3x() {
+    let p = creep_plant();
+    let rec = record(&p, SCENARIO_1K);
+    let full = "hysteresis,creep,dynamics";
+    assert!(rms_ratio(&rec, full, "creep,dynamics") >= 3.0, "hysteresis");
+    assert!(rms_ratio(&rec, full, "hysteresis,dynamics") >= 3.0, "creep");
+    assert!(rms_ratio(&rec, full, "hysteresis,creep") >= 3.0, "dynamics");
+    let p2 = plant("piezo_2dof.json");
+    let rec2 = record(&p2, SCENARIO_2DOF);
+    assert!(
+        rms_ratio(&rec2, "hysteresis,dynamics,coupling", "hysteresis,dynamics") >= 3.0,
+        "coupling"
+    );
+}
