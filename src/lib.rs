@@ -8,9 +8,11 @@
 //! - [`plant`]: plant specs (`plants/*.json`) and the simulator;
 //! - [`scenario`]: excitations, sampling, noise, seed and split (`scenarios/*.json`);
 //! - [`data`]: records, CSV in and out, atomic writes;
+//! - [`narx`]: the NARX-MLP identifier (one-step and free-run prediction, model files);
 //! - [`metrics`]: R^2, RMSE, NRMSE / fit %, max error.
 
+pub mod cli;
 pub mod data;
 pub mod effect;
 pub mod metrics;
-pub mod cli;
+pub mod narx;
