@@ -78,6 +78,24 @@ pub struct NetArgs {
     /// Independent restarts of the default protocol (best free run on validation wins).
     #[arg(long)]
     pub restarts: Option<usize>,
+    /// Simulation-error phase (default protocol): maximum gradient steps.
+    #[arg(long)]
+    pub sim_steps: Option<usize>,
+    /// Simulation-error phase: Adam learning rate.
+    #[arg(long)]
+    pub sim_lr: Option<f64>,
+    /// Simulation-error phase: samples per window.
+    #[arg(long)]
+    pub window: Option<usize>,
+    /// Simulation-error phase: validations without improvement before stopping.
+    #[arg(long)]
+    pub sim_patience: Option<usize>,
+    /// Simulation-error phase: L2 penalty on hidden weights.
+    #[arg(long)]
+    pub weight_decay: Option<f64>,
+    /// Fraction of the training record kept for validation (default protocol).
+    #[arg(long)]
+    pub validation_fraction: Option<f64>,
 }
 
 impl NetArgs {
@@ -108,7 +126,25 @@ impl NetArgs {
         c.epochs = self.epochs;
         c.seed = self.seed;
         if let Some(r) = self.restarts {
-            c.robust.restarts = r;
+            c.robust.restarts = Some(r);
+        }
+        if let Some(v) = self.sim_steps {
+            c.robust.sim_steps = v;
+        }
+        if let Some(v) = self.sim_lr {
+            c.robust.sim_lr = v;
+        }
+        if let Some(v) = self.window {
+            c.robust.window = v;
+        }
+        if let Some(v) = self.validation_fraction {
+            c.robust.validation_fraction = v;
+        }
+        if let Some(v) = self.weight_decay {
+            c.robust.weight_decay = v;
+        }
+        if let Some(v) = self.sim_patience {
+            c.robust.sim_patience = v;
         }
         c
     }

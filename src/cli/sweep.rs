@@ -129,6 +129,12 @@ fn config(a: &SweepArgs, s: &Setting, inputs: Vec<String>, outputs: Vec<String>)
         seed: s.seed,
         protocol: a.net.protocol,
         restarts: a.net.restarts,
+        sim_steps: None,
+        sim_lr: None,
+        window: None,
+        sim_patience: None,
+        weight_decay: None,
+        validation_fraction: None,
     };
     net.config(inputs, outputs, s.lags, s.lr, s.batch)
 }

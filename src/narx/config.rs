@@ -64,8 +64,9 @@ pub struct RobustSettings {
     pub validation_fraction: f64,
     /// One-step phase: epochs without validation improvement before stopping.
     pub patience: usize,
-    /// Independent initialisations; the best free run on validation wins.
-    pub restarts: usize,
+    /// Independent initialisations; the best free run on validation wins. `None`: 2, or 8 for
+    /// training records under 5,000 samples (cheap, and selection matters most there).
+    pub restarts: Option<usize>,
     /// Simulation-error phase: maximum number of gradient steps.
     pub sim_steps: usize,
     /// Samples per window (multiple shooting: each window starts from measured outputs).
@@ -78,6 +79,10 @@ pub struct RobustSettings {
     pub eval_every: usize,
     /// Evaluations without improvement before stopping.
     pub sim_patience: usize,
+    /// L2 penalty on the hidden-layer weights in the simulation-error phase (smoother maps
+    /// extrapolate better on short records).
+    #[serde(default)]
+    pub weight_decay: f64,
 }
 
 impl Default for RobustSettings {
@@ -86,14 +91,22 @@ impl Default for RobustSettings {
             bypass: true,
             validation_fraction: 0.2,
             patience: 10,
-            restarts: 2,
+            restarts: None,
             sim_steps: 300,
             window: 1000,
             samples_per_step: 8000,
             sim_lr: 2e-3,
             eval_every: 10,
             sim_patience: 6,
+            weight_decay: 0.0,
         }
+    }
+}
+
+impl RobustSettings {
+    /// Restarts for a training record of `n` samples.
+    pub fn restarts_for(&self, n: usize) -> usize {
+        self.restarts.unwrap_or(if n < 5000 { 8 } else { 2 })
     }
 }
 
@@ -167,7 +180,7 @@ impl NarxConfig {
                 "must be in [0, 0.9)",
             );
         }
-        if r.restarts == 0 {
+        if r.restarts == Some(0) {
             return bad("restarts", "0".into(), "must be at least 1");
         }
         if r.window < 2 || r.samples_per_step == 0 || r.eval_every == 0 {

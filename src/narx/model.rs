@@ -161,7 +161,7 @@ impl NarxConfig {
             .map(|(s, sc)| sc.apply(&s.values))
             .collect();
         let restarts = match self.protocol {
-            Protocol::Default => self.robust.restarts,
+            Protocol::Default => self.robust.restarts_for(n),
             Protocol::Study => 1,
         };
         // every (output, restart) job in parallel; results in order
@@ -308,18 +308,24 @@ impl NarxConfig {
                     stream_seed(seed, 2),
                 );
                 let (lo, hi) = plausible_range(&s.y);
+                // The validation free run starts half-way into the fitting part (away from any
+                // start-up transient) and is scored on the validation part.
+                let sim_from = (fit_end / 2).max(start).min(val_from);
+                let val = s.slice(sim_from - start..n);
+                let vf = val_from + start - sim_from;
                 let sim = train_simulation_error(
                     &mut net,
                     reg,
                     s,
                     fit_end,
-                    val_from,
+                    &val,
+                    vf,
                     lo,
                     hi,
                     r,
                     stream_seed(seed, 3),
                 );
-                let selection_mse = free_run_score(&net, reg, s, val_from, lo, hi);
+                let selection_mse = free_run_score(&net, reg, &val, vf, lo, hi);
                 (
                     net,
                     RestartRecord {

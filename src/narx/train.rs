@@ -481,13 +481,14 @@ pub fn free_run_score(
 }
 
 /// Simulation-error training on `s.slice(0..fit_end)` with windows; every `eval_every` steps the
-/// free run of the whole series scored on `val_from..` decides which weights to keep.
+/// free run of the validation series `val`, scored on `val_from..`, decides which weights to keep.
 #[allow(clippy::too_many_arguments)]
 pub fn train_simulation_error(
     mlp: &mut Mlp,
     reg: &Regressor,
     s: &Series,
     fit_end: usize,
+    val: &Series,
     val_from: usize,
     lo: f64,
     hi: f64,
@@ -502,7 +503,7 @@ pub fn train_simulation_error(
     } else {
         (r.window, (r.samples_per_step / r.window).max(1))
     };
-    let before = free_run_score(mlp, reg, s, val_from, lo, hi);
+    let before = free_run_score(mlp, reg, val, val_from, lo, hi);
     let mut best = (before.unwrap_or(f64::INFINITY), 0usize, mlp.params.clone());
     let mut rec = SimulationRecord {
         steps_run: 0,
@@ -540,6 +541,17 @@ pub fn train_simulation_error(
             *g *= scale;
             norm += *g * *g;
         }
+        if r.weight_decay > 0.0 {
+            // hidden layers' weights only (not biases, output layer or bypass)
+            let mut off = 0;
+            for l in 0..mlp.sizes.len() - 2 {
+                let (ni, no) = (mlp.sizes[l], mlp.sizes[l + 1]);
+                for i in off..off + ni * no {
+                    grad[i] += 2.0 * r.weight_decay * mlp.params[i];
+                }
+                off += ni * no + no;
+            }
+        }
         let norm = norm.sqrt();
         if !norm.is_finite() {
             break;
@@ -550,7 +562,7 @@ pub fn train_simulation_error(
         opt.step(&mut mlp.params, &grad);
         rec.steps_run = step;
         if step % r.eval_every == 0 || step == r.sim_steps {
-            let sc = free_run_score(mlp, reg, s, val_from, lo, hi).unwrap_or(f64::INFINITY);
+            let sc = free_run_score(mlp, reg, val, val_from, lo, hi).unwrap_or(f64::INFINITY);
             if sc < best.0 {
                 best = (sc, step, mlp.params.clone());
                 since_best = 0;
