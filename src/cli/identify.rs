@@ -152,7 +152,7 @@ impl NetArgs {
 
 /// Train and test records from `--data` / `--test`, with the selected columns.
 pub fn load_records(
-    data: &PathBuf,
+    data: &std::path::Path,
     test: Option<&PathBuf>,
     inputs: &[String],
     outputs: &[String],

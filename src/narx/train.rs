@@ -352,7 +352,7 @@ pub fn free_run_fast(
             for (wi, xi) in row.iter().zip(xy) {
                 a += wi * xi;
             }
-            out += w2[o] * a.tanh();
+            out += w2[o] * super::mlp::tanh(a);
         }
         for (wi, xi) in wsy.iter().zip(xy) {
             out += wi * xi;
@@ -421,7 +421,7 @@ fn window_gradient(
         let acts = &mut ws.acts[t * na..(t + 1) * na];
         mlp.forward(x, acts);
         let v = reg.base(&ws.yb, ny + t) + sc * acts[na - 1];
-        if !(v.abs() <= bound) {
+        if v.is_nan() || v.abs() > bound {
             n_eff = t;
             break;
         }
@@ -546,8 +546,11 @@ pub fn train_simulation_error(
             let mut off = 0;
             for l in 0..mlp.sizes.len() - 2 {
                 let (ni, no) = (mlp.sizes[l], mlp.sizes[l + 1]);
-                for i in off..off + ni * no {
-                    grad[i] += 2.0 * r.weight_decay * mlp.params[i];
+                for (g, p) in grad[off..off + ni * no]
+                    .iter_mut()
+                    .zip(&mlp.params[off..off + ni * no])
+                {
+                    *g += 2.0 * r.weight_decay * p;
                 }
                 off += ni * no + no;
             }
@@ -581,6 +584,7 @@ pub fn train_simulation_error(
 }
 
 #[cfg(test)]
+#[allow(clippy::needless_range_loop)]
 mod tests {
     use super::*;
     use crate::narx::regressors::{Lags, RegressorForm};
