@@ -208,6 +208,15 @@ pub fn run(args: IdentifyArgs) -> anyhow::Result<()> {
         args.lr,
         args.batch,
     );
+    let need = cfg.lags.start() + 2;
+    if args.test.is_none() && train.len() < need {
+        anyhow::bail!(
+            "{}: {} rows split in halves leave {} for training, the lags need {need} (or give --test)",
+            args.data.display(),
+            train.len() + test.len(),
+            train.len()
+        );
+    }
     run_with(args, cfg, train, test)
 }
 
