@@ -574,7 +574,11 @@ pub fn train_simulation_error(
     if window < 2 {
         return rec;
     }
-    let bound = 10.0 * (hi - lo).abs().max(1.0);
+    // Windows are cut where the simulation leaves three times the data's amplitude: beyond
+    // that the trajectory carries no useful gradient, only overflow.
+    let amp = s.y[..fit_end].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let bound = (3.0 * amp).max(1.0);
+    let mut skipped = 0;
     let np = mlp.params.len();
     let mut opt = Optimizer::new(OptimizerKind::Adam, r.sim_lr, np);
     let mut grad = vec![0.0; np];
@@ -617,8 +621,14 @@ pub fn train_simulation_error(
         }
         let norm = norm.sqrt();
         if !norm.is_finite() {
-            break;
+            // an overflowing step is skipped; many in a row end the phase
+            skipped += 1;
+            if skipped >= 20 {
+                break;
+            }
+            continue;
         }
+        skipped = 0;
         if norm > 1.0 {
             grad.iter_mut().for_each(|g| *g /= norm);
         }
