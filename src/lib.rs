@@ -11,8 +11,8 @@
 //! - [`narx`]: the NARX-MLP identifier (one-step and free-run prediction, model files);
 //! - [`metrics`]: R^2, RMSE, NRMSE / fit %, max error.
 
-pub mod cli;
 pub mod data;
 pub mod effect;
 pub mod metrics;
 pub mod narx;
+pub mod cli;

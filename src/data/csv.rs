@@ -26,10 +26,7 @@ pub fn read_csv(path: &Path) -> Result<Record, DataError> {
 /// Parse CSV text (see [`read_csv`]); `path` only labels the errors.
 pub fn parse_csv(path: &Path, text: &str) -> Result<Record, DataError> {
     let p = || path.to_path_buf();
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty());
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
     let (_, header) = lines.next().ok_or(DataError::Empty { path: p() })?;
     let header = header.trim_start_matches('\u{feff}');
     let names: Vec<String> = header
@@ -50,8 +47,7 @@ pub fn parse_csv(path: &Path, text: &str) -> Result<Record, DataError> {
             });
         }
     }
-    let mut columns: Vec<Vec<f64>> =
-        vec![Vec::with_capacity(text.len() / (8 * names.len()) + 1); names.len()];
+    let mut columns: Vec<Vec<f64>> = vec![Vec::with_capacity(text.len() / (8 * names.len()) + 1); names.len()];
     for (idx, line) in lines {
         let line_no = idx + 1;
         let mut found = 0;
@@ -205,10 +201,7 @@ mod tests {
     #[test]
     fn errors_name_line_and_column() {
         let e = parse("t,u\n0,1\n1,abc\n").unwrap_err().to_string();
-        assert!(
-            e.contains("line 3") && e.contains("`u`") && e.contains("abc"),
-            "{e}"
-        );
+        assert!(e.contains("line 3") && e.contains("`u`") && e.contains("abc"), "{e}");
         let e = parse("t,u\n0,1\n1,\n").unwrap_err().to_string();
         assert!(e.contains("line 3") && e.contains("missing"), "{e}");
         let e = parse("t,u\n0,1\n1,NaN\n").unwrap_err().to_string();

@@ -64,9 +64,7 @@ pub enum DataError {
         period: f64,
         deviation: f64,
     },
-    #[error(
-        "{path}: time column `{column}` does not increase (line {line}: {time} after {previous})"
-    )]
+    #[error("{path}: time column `{column}` does not increase (line {line}: {time} after {previous})")]
     TimeNotIncreasing {
         path: PathBuf,
         line: usize,
@@ -94,9 +92,7 @@ pub enum DataError {
         path: PathBuf,
         source: std::io::Error,
     },
-    #[error(
-        "refusing to write a non-finite value ({value}) in column `{column}`, row {row}, to {path}"
-    )]
+    #[error("refusing to write a non-finite value ({value}) in column `{column}`, row {row}, to {path}")]
     NonFiniteOutput {
         path: PathBuf,
         column: String,

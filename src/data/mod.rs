@@ -15,6 +15,6 @@ mod write;
 
 pub use csv::{parse_csv, read_csv, Record};
 pub use error::DataError;
-pub use io_record::default_names;
 pub use io_record::{IoRecord, Signal};
+pub use io_record::default_names;
 pub use write::{check_writable, format_csv, write_atomic, write_csv_atomic, OutputGuard};

@@ -100,11 +100,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8], force: bool) -> Result<(), DataEr
 }
 
 /// Format columns as CSV text, refusing non-finite values.
-pub fn format_csv(
-    path: &Path,
-    names: &[String],
-    columns: &[Vec<f64>],
-) -> Result<String, DataError> {
+pub fn format_csv(path: &Path, names: &[String], columns: &[Vec<f64>]) -> Result<String, DataError> {
     let n = columns.first().map_or(0, Vec::len);
     let mut s = String::with_capacity(n * names.len() * 20);
     s.push_str(&names.join(","));
@@ -151,10 +147,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("a.csv");
         write_atomic(&p, b"one", false).unwrap();
-        assert!(matches!(
-            write_atomic(&p, b"two", false),
-            Err(DataError::Exists { .. })
-        ));
+        assert!(matches!(write_atomic(&p, b"two", false), Err(DataError::Exists { .. })));
         assert_eq!(std::fs::read(&p).unwrap(), b"one");
         write_atomic(&p, b"two", true).unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"two");

@@ -230,9 +230,7 @@ mod tests {
         for w in u.windows(2) {
             let du = (w[1] - w[0]) / sub as f64;
             for _ in 0..sub {
-                h += p.a * du
-                    - p.b * du.abs() * h.abs().powf(p.n - 1.0) * h
-                    - p.gamma * du * h.abs().powf(p.n);
+                h += p.a * du - p.b * du.abs() * h.abs().powf(p.n - 1.0) * h - p.gamma * du * h.abs().powf(p.n);
             }
             out.push(p.d * w[1] - h);
         }
@@ -247,11 +245,7 @@ mod tests {
             .collect();
         let y = p.operator().apply(&u);
         let y_ref = euler(&p, &u, 2000);
-        let err = y
-            .iter()
-            .zip(&y_ref)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let err = y.iter().zip(&y_ref).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(err < 2e-3, "max error {err}");
     }
 
@@ -271,11 +265,7 @@ mod tests {
         let u: Vec<f64> = (0..400).map(|k| 40.0 * (k as f64 * 0.03).sin()).collect();
         let y = p.operator().apply(&u);
         let y_ref = euler(&p, &u, 2000);
-        let err = y
-            .iter()
-            .zip(&y_ref)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let err = y.iter().zip(&y_ref).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(err < 2e-3, "max error {err}");
     }
 

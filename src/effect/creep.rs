@@ -72,11 +72,7 @@ impl CreepSpec {
                 if g.len() != taus.len() {
                     return Err(EffectError::Shape {
                         field: "gains".into(),
-                        rule: format!(
-                            "has {} entries but there are {} time constants",
-                            g.len(),
-                            taus.len()
-                        ),
+                        rule: format!("has {} entries but there are {} time constants", g.len(), taus.len()),
                     });
                 }
                 for (i, &v) in g.iter().enumerate() {
@@ -125,11 +121,7 @@ impl Creep {
     /// The operator for sampling period `ts`, at rest.
     pub fn operator(&self, ts: f64) -> CreepOp {
         CreepOp {
-            a: self
-                .time_constants_s
-                .iter()
-                .map(|t| (-ts / t).exp())
-                .collect(),
+            a: self.time_constants_s.iter().map(|t| (-ts / t).exp()).collect(),
             g: self.gains.clone(),
             z: vec![0.0; self.gains.len()],
         }
@@ -202,10 +194,6 @@ mod tests {
             gains: Some(vec![0.1]),
             percent_per_decade: None,
         };
-        assert!(s
-            .check()
-            .unwrap_err()
-            .to_string()
-            .contains("time_constants_s[0]"));
+        assert!(s.check().unwrap_err().to_string().contains("time_constants_s[0]"));
     }
 }

@@ -168,10 +168,7 @@ mod tests {
             let y = d.operator(ts).unwrap().apply(&[1.0; 400]);
             for (k, yk) in y.iter().enumerate() {
                 let exact = d.step_response(k as f64 * ts);
-                assert!(
-                    (yk - exact).abs() < 1e-12,
-                    "zeta {zeta} k {k}: {yk} vs {exact}"
-                );
+                assert!((yk - exact).abs() < 1e-12, "zeta {zeta} k {k}: {yk} vs {exact}");
             }
         }
     }
@@ -185,11 +182,7 @@ mod tests {
         }
         .check()
         .unwrap();
-        assert!(d
-            .operator(1e-3)
-            .unwrap_err()
-            .to_string()
-            .contains("Nyquist"));
+        assert!(d.operator(1e-3).unwrap_err().to_string().contains("Nyquist"));
     }
 
     #[test]

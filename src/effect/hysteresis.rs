@@ -38,12 +38,10 @@ impl HysteresisSpec {
     /// Check the parameters; errors carry the operator's name in the field path.
     pub fn check(&self) -> Result<Hysteresis, EffectError> {
         Ok(match self {
-            HysteresisSpec::BoucWen(s) => {
-                Hysteresis::BoucWen(s.check().map_err(|e| e.within("bouc_wen"))?)
+            HysteresisSpec::BoucWen(s) => Hysteresis::BoucWen(s.check().map_err(|e| e.within("bouc_wen"))?),
+            HysteresisSpec::PrandtlIshlinskii(s) => {
+                Hysteresis::PrandtlIshlinskii(s.check().map_err(|e| e.within("prandtl_ishlinskii"))?)
             }
-            HysteresisSpec::PrandtlIshlinskii(s) => Hysteresis::PrandtlIshlinskii(
-                s.check().map_err(|e| e.within("prandtl_ishlinskii"))?,
-            ),
             HysteresisSpec::Linear(s) => Hysteresis::Linear(finite("linear.gain", s.gain)?),
         })
     }

@@ -66,10 +66,7 @@ fn increasing(field: &str, v: &[f64], strictly_positive: bool) -> Result<(), Eff
             return Err(EffectError::Invalid {
                 field: name,
                 value: x,
-                rule: format!(
-                    "thresholds must be strictly increasing (previous is {})",
-                    v[i - 1]
-                ),
+                rule: format!("thresholds must be strictly increasing (previous is {})", v[i - 1]),
             });
         }
     }
@@ -128,12 +125,7 @@ impl PrandtlIshlinskiiSpec {
 
 /// The dead-zone map must be strictly increasing: its slope is positive on every interval.
 fn check_monotone_dead_zones(d: &[f64], c: &[f64]) -> Result<(), EffectError> {
-    let w0: f64 = d
-        .iter()
-        .zip(c)
-        .filter(|(d, _)| **d == 0.0)
-        .map(|(_, c)| c)
-        .sum();
+    let w0: f64 = d.iter().zip(c).filter(|(d, _)| **d == 0.0).map(|(_, c)| c).sum();
     let mut slope = w0;
     for (&dj, &cj) in d.iter().zip(c).filter(|(d, _)| **d > 0.0) {
         slope += cj;
@@ -141,9 +133,7 @@ fn check_monotone_dead_zones(d: &[f64], c: &[f64]) -> Result<(), EffectError> {
             return Err(EffectError::Invalid {
                 field: "dead_zones.weights".into(),
                 value: cj,
-                rule: format!(
-                    "the dead-zone map must increase; its slope above {dj} would be {slope}"
-                ),
+                rule: format!("the dead-zone map must increase; its slope above {dj} would be {slope}"),
             });
         }
     }
@@ -154,9 +144,7 @@ fn check_monotone_dead_zones(d: &[f64], c: &[f64]) -> Result<(), EffectError> {
             return Err(EffectError::Invalid {
                 field: "dead_zones.weights".into(),
                 value: cj,
-                rule: format!(
-                    "the dead-zone map must increase; its slope below {dj} would be {slope}"
-                ),
+                rule: format!("the dead-zone map must increase; its slope below {dj} would be {slope}"),
             });
         }
     }
@@ -238,21 +226,14 @@ mod tests {
         let mut s = spec();
         s.thresholds = vec![4.0, 4.0, 12.0];
         let e = s.check().unwrap_err().to_string();
-        assert!(
-            e.contains("thresholds[1]") && e.contains("strictly increasing"),
-            "{e}"
-        );
+        assert!(e.contains("thresholds[1]") && e.contains("strictly increasing"), "{e}");
     }
 
     #[test]
     fn weights_must_match_thresholds() {
         let mut s = spec();
         s.weights.pop();
-        assert!(s
-            .check()
-            .unwrap_err()
-            .to_string()
-            .contains("one weight per threshold"));
+        assert!(s.check().unwrap_err().to_string().contains("one weight per threshold"));
     }
 
     #[test]
@@ -274,9 +255,7 @@ mod tests {
         });
         let u: Vec<f64> = (0..4000).map(|k| 30.0 * (k as f64 * 0.005).sin()).collect();
         let y = s.check().unwrap().operator().apply(&u);
-        let (max, min) = y
-            .iter()
-            .fold((f64::MIN, f64::MAX), |a, &v| (a.0.max(v), a.1.min(v)));
+        let (max, min) = y.iter().fold((f64::MIN, f64::MAX), |a, &v| (a.0.max(v), a.1.min(v)));
         assert!(max + min < -1.0, "top is squashed: max {max} min {min}");
     }
 }
