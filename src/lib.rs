@@ -5,11 +5,17 @@
 //!
 //! - [`effect`]: the effect library (hysteresis, creep, dynamics, coupling, noise), written once
 //!   and shared by simulation, grey-box fitting, diagnosis and NARX features;
-//! - [`plant`]: plant specs (`plants/*.json`) and the simulator;
+//! - [`plant`]: plant specs (`plants/*.json`), their composition and the ODE plants;
 //! - [`scenario`]: excitations, sampling, noise, seed and split (`scenarios/*.json`);
+//! - [`simulator`]: inputs -> plant -> noise -> record with provenance;
+//! - [`narx`]: the NARX-MLP identifier (one-step and free-run prediction, model files);
+//! - [`graybox`]: grey-box models, compositions of the effects fitted to a record;
+//! - [`diagnose`]: where a model fails and which effect it misses;
+//! - [`model`]: any model (plant, grey-box, NARX) behind one trait;
+//! - [`plot`]: figures (PNG, SVG): loops, time, residual loops, parity, spectra, sweeps, ladder;
 //! - [`data`]: records, CSV in and out, atomic writes;
-//! - [`metrics`]: R^2, RMSE, NRMSE / fit %, max error;
-//! - [`plot`]: figures (PNG, SVG): loops, time, residual loops, parity, spectra, sweeps, ladder.
+//! - [`signal`]: FFT and spectra;
+//! - [`metrics`]: R^2, RMSE, NRMSE / fit %, max error, loop measures.
 
 pub mod cli;
 pub mod data;
@@ -18,6 +24,7 @@ pub mod effect;
 pub mod graybox;
 pub mod metrics;
 pub mod model;
+pub mod narx;
 pub mod plant;
 pub mod plot;
 pub mod scenario;

@@ -9,8 +9,11 @@ pub mod compare;
 pub mod demo;
 pub mod diagnose;
 pub mod fit;
+pub mod identify;
 pub mod plot;
+pub mod predict;
 pub mod simulate;
+pub mod sweep;
 
 /// Simulate, identify, plot and improve models of hysteretic actuators.
 #[derive(Debug, Parser)]
@@ -23,18 +26,24 @@ pub struct Cli {
 /// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Compare a model with a record: scores and where it fails.
-    Compare(compare::Args),
-    /// Which physical effect does the model miss?
-    Diagnose(diagnose::Args),
     /// The main job on built-in defaults: simulate the shipped plants and report.
     Demo(demo::Args),
     /// Simulate a plant on a scenario or a recorded input and write a record.
     Simulate(simulate::Args),
-    /// Draw a figure (PNG or SVG): loop, time, residual-loop, parity, spectrum, sweep, ladder.
-    Plot(plot::PlotArgs),
+    /// Identify a record with a NARX-MLP (one-step and free-run scores, model file).
+    Identify(identify::IdentifyArgs),
+    /// Train a grid of NARX settings in parallel and report them like the source study.
+    Sweep(sweep::SweepArgs),
+    /// Predict a record with a model file (one-step-ahead or free run).
+    Predict(predict::PredictArgs),
     /// Fit a grey-box model (hysteresis, creep, dynamics, coupling) to a record.
     Fit(fit::Args),
+    /// Compare a model with a record: scores and where it fails.
+    Compare(compare::Args),
+    /// Which physical effect does the model miss?
+    Diagnose(diagnose::Args),
+    /// Draw a figure (PNG or SVG): loop, time, residual-loop, parity, spectrum, sweep, ladder.
+    Plot(plot::PlotArgs),
 }
 
 /// Print to standard output, ending with a newline; a closed pipe (`| head`) is not an error.
@@ -51,12 +60,15 @@ pub fn print(text: &str) {
 /// Run one parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Command::Compare(a) => compare::run(a),
         Command::Demo(a) => demo::run(a),
-        Command::Diagnose(a) => diagnose::run(a),
         Command::Simulate(a) => simulate::run(a),
-        Command::Plot(args) => plot::run(args),
+        Command::Identify(a) => identify::run(a),
+        Command::Sweep(a) => sweep::run(a),
+        Command::Predict(a) => predict::run(a),
         Command::Fit(a) => fit::run(a),
+        Command::Compare(a) => compare::run(a),
+        Command::Diagnose(a) => diagnose::run(a),
+        Command::Plot(a) => plot::run(a),
     }
 }
 

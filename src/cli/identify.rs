@@ -1,0 +1,264 @@
+//! `hystbench identify`: fit a NARX-MLP to a record, score it one-step-ahead and in free run on
+//! the training and test parts, and write the model file.
+
+use crate::data::{check_writable, read_csv, write_atomic, IoRecord};
+use crate::narx::model::OutputEvaluation;
+use crate::narx::{FittedNarx, Lags, NarxConfig, OptimizerKind, Protocol};
+use anyhow::Context;
+use clap::Args;
+use std::path::PathBuf;
+
+/// Identify a record with a NARX neural network (one MISO model per output).
+#[derive(Debug, Clone, Args)]
+pub struct IdentifyArgs {
+    /// Training record (CSV); without --test its first half trains and its second half tests.
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Separate test record with the same columns.
+    #[arg(long)]
+    pub test: Option<PathBuf>,
+    /// Input columns (default `u` or `u1,u2,...`).
+    #[arg(long, value_delimiter = ',')]
+    pub inputs: Vec<String>,
+    /// Output columns (default `y` or `y1,y2,...`).
+    #[arg(long, value_delimiter = ',')]
+    pub outputs: Vec<String>,
+    /// Lags n of outputs and inputs (the study's equal orders).
+    #[arg(long, default_value_t = 4)]
+    pub lags: usize,
+    /// Learning rate of the one-step phase.
+    #[arg(long, default_value_t = 0.01)]
+    pub lr: f64,
+    /// Mini-batch size of the one-step phase.
+    #[arg(long, default_value_t = 128)]
+    pub batch: usize,
+    #[command(flatten)]
+    pub net: NetArgs,
+    /// Model file to write (JSON).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Overwrite an existing model file.
+    #[arg(long)]
+    pub force: bool,
+    /// Print one JSON object with the scores instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Network and training settings shared by `identify` and `sweep`.
+#[derive(Debug, Clone, Args)]
+pub struct NetArgs {
+    /// Hidden neurons per layer.
+    #[arg(long, default_value_t = 10)]
+    pub neurons: usize,
+    /// Hidden tanh layers.
+    #[arg(long, default_value_t = 1)]
+    pub layers: usize,
+    /// Output lags (default: --lags).
+    #[arg(long)]
+    pub output_lags: Option<usize>,
+    /// Input lags (default: --lags).
+    #[arg(long)]
+    pub input_lags: Option<usize>,
+    /// Input delay d: the newest input in the regressor is u(k-d).
+    #[arg(long, default_value_t = 1)]
+    pub delay: usize,
+    /// Optimizer of the one-step phase (default: adam; rmsprop with --protocol study).
+    #[arg(long, value_enum)]
+    pub optimizer: Option<OptimizerKind>,
+    /// Epochs of the one-step phase.
+    #[arg(long, default_value_t = 100)]
+    pub epochs: usize,
+    /// Seed of initialisation, shuffling and windows.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// `default`: free-run reliable training; `study`: the source study's one-step training.
+    #[arg(long, value_enum, default_value_t = Protocol::Default)]
+    pub protocol: Protocol,
+    /// Independent restarts of the default protocol (best free run on validation wins).
+    #[arg(long)]
+    pub restarts: Option<usize>,
+    /// Simulation-error phase (default protocol): maximum gradient steps.
+    #[arg(long)]
+    pub sim_steps: Option<usize>,
+    /// Simulation-error phase: Adam learning rate.
+    #[arg(long)]
+    pub sim_lr: Option<f64>,
+    /// Simulation-error phase: samples per window.
+    #[arg(long)]
+    pub window: Option<usize>,
+    /// Simulation-error phase: validations without improvement before stopping.
+    #[arg(long)]
+    pub sim_patience: Option<usize>,
+    /// Simulation-error phase: L2 penalty on hidden weights.
+    #[arg(long)]
+    pub weight_decay: Option<f64>,
+    /// Fraction of the training record kept for validation (default protocol).
+    #[arg(long)]
+    pub validation_fraction: Option<f64>,
+}
+
+impl NetArgs {
+    /// A configuration for given signals, lags, learning rate and batch.
+    pub fn config(
+        &self,
+        inputs: Vec<String>,
+        outputs: Vec<String>,
+        lags: usize,
+        lr: f64,
+        batch: usize,
+    ) -> NarxConfig {
+        let mut c = NarxConfig::new(inputs, outputs);
+        c.lags = Lags {
+            output: self.output_lags.unwrap_or(lags),
+            input: self.input_lags.unwrap_or(lags),
+            delay: self.delay,
+        };
+        c.neurons = self.neurons;
+        c.layers = self.layers;
+        c.protocol = self.protocol;
+        c.optimizer = self.optimizer.unwrap_or(match self.protocol {
+            Protocol::Default => OptimizerKind::Adam,
+            Protocol::Study => OptimizerKind::Rmsprop,
+        });
+        c.lr = lr;
+        c.batch = batch;
+        c.epochs = self.epochs;
+        c.seed = self.seed;
+        if let Some(r) = self.restarts {
+            c.robust.restarts = Some(r);
+        }
+        if let Some(v) = self.sim_steps {
+            c.robust.sim_steps = v;
+        }
+        if let Some(v) = self.sim_lr {
+            c.robust.sim_lr = v;
+        }
+        if let Some(v) = self.window {
+            c.robust.window = v;
+        }
+        if let Some(v) = self.validation_fraction {
+            c.robust.validation_fraction = v;
+        }
+        if let Some(v) = self.weight_decay {
+            c.robust.weight_decay = v;
+        }
+        if let Some(v) = self.sim_patience {
+            c.robust.sim_patience = v;
+        }
+        c
+    }
+}
+
+/// Train and test records from `--data` / `--test`, with the selected columns.
+pub fn load_records(
+    data: &std::path::Path,
+    test: Option<&PathBuf>,
+    inputs: &[String],
+    outputs: &[String],
+) -> anyhow::Result<(IoRecord, IoRecord)> {
+    let sel = |v: &[String]| (!v.is_empty()).then(|| v.to_vec());
+    let (i, o) = (sel(inputs), sel(outputs));
+    let rec = IoRecord::from_record(&read_csv(data)?, i.as_deref(), o.as_deref(), true)?;
+    match test {
+        None => Ok(rec.split_halves()),
+        Some(t) => {
+            let names_i = rec.input_names();
+            let names_o = rec.output_names();
+            let te = IoRecord::from_record(&read_csv(t)?, Some(&names_i), Some(&names_o), true)?;
+            Ok((rec, te))
+        }
+    }
+}
+
+/// Scores as the JSON object of one output.
+pub fn evaluation_json(e: &OutputEvaluation) -> serde_json::Value {
+    let mut m = serde_json::Map::new();
+    m.insert("r2_osa_train".into(), e.r2_osa_train.into());
+    m.insert("r2_fr_train".into(), e.r2_fr_train.into());
+    m.insert("r2_osa_test".into(), e.r2_osa_test.into());
+    m.insert("r2_fr_test".into(), e.r2_fr_test.into());
+    m.insert("rmse_fr_test".into(), e.rmse_fr_test.into());
+    if let Some(k) = e.diverged_at_test {
+        m.insert("diverged_at".into(), k.into());
+    }
+    if let Some(k) = e.diverged_at_train {
+        m.insert("diverged_at_train".into(), k.into());
+    }
+    serde_json::Value::Object(m)
+}
+
+/// A score cell for tables.
+pub fn cell(v: Option<f64>, diverged: Option<usize>) -> String {
+    match (v, diverged) {
+        (_, Some(k)) => format!("diverged@{k}"),
+        (Some(x), None) => format!("{x:.5}"),
+        (None, None) => "undefined".into(),
+    }
+}
+
+/// Run `identify`.
+pub fn run(args: IdentifyArgs) -> anyhow::Result<()> {
+    check_writable(&args.out, args.force)?;
+    let (train, test) = load_records(&args.data, args.test.as_ref(), &args.inputs, &args.outputs)?;
+    let cfg = args.net.config(
+        train.input_names(),
+        train.output_names(),
+        args.lags,
+        args.lr,
+        args.batch,
+    );
+    let need = cfg.lags.start() + 2;
+    if args.test.is_none() && train.len() < need {
+        anyhow::bail!(
+            "{}: {} rows split in halves leave {} for training, the lags need {need} (or give --test)",
+            args.data.display(),
+            train.len() + test.len(),
+            train.len()
+        );
+    }
+    run_with(args, cfg, train, test)
+}
+
+fn run_with(
+    args: IdentifyArgs,
+    cfg: NarxConfig,
+    train: IoRecord,
+    test: IoRecord,
+) -> anyhow::Result<()> {
+    let model: FittedNarx = cfg
+        .fit(&train)
+        .context("training failed; nothing written")?;
+    let eval = model.evaluate(&train, &test)?;
+    write_atomic(&args.out, model.to_json().as_bytes(), args.force)?;
+    if args.json {
+        let mut outs = serde_json::Map::new();
+        for e in &eval {
+            outs.insert(e.name.clone(), evaluation_json(e));
+        }
+        let v = serde_json::json!({"outputs": outs, "train_seconds": model.train_seconds});
+        println!("{v}");
+    } else {
+        println!(
+            "{:<12} {:>12} {:>12} {:>12} {:>12} {:>12}",
+            "output", "R2 OSA train", "R2 FR train", "R2 OSA test", "R2 FR test", "RMSE FR test"
+        );
+        for e in &eval {
+            println!(
+                "{:<12} {:>12} {:>12} {:>12} {:>12} {:>12}",
+                e.name,
+                cell(e.r2_osa_train, None),
+                cell(e.r2_fr_train, e.diverged_at_train),
+                cell(e.r2_osa_test, None),
+                cell(e.r2_fr_test, e.diverged_at_test),
+                e.rmse_fr_test.map_or("-".into(), |v| format!("{v:.4e}")),
+            );
+        }
+        println!(
+            "trained in {:.2} s; model written to {}",
+            model.train_seconds,
+            args.out.display()
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,354 @@
+//! `hystbench sweep`: the source study's grid (lags x neurons x learning rate x batch), every
+//! setting trained in parallel with its own seed, written as `results.csv` and a Markdown report
+//! laid out like the study's tables.
+
+use super::identify::{load_records, NetArgs};
+use crate::data::{check_writable, OutputGuard};
+use crate::effect::noise::stream_seed;
+use crate::narx::model::OutputEvaluation;
+use crate::narx::NarxConfig;
+use anyhow::Context;
+use clap::Args;
+use rayon::prelude::*;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Train a grid of NARX settings and report one-step and free-run R^2 for each.
+#[derive(Debug, Clone, Args)]
+pub struct SweepArgs {
+    /// Record (CSV); first half trains, second half tests (unless --test).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Separate test record.
+    #[arg(long)]
+    pub test: Option<PathBuf>,
+    /// Input columns (default `u` or `u1,u2,...`).
+    #[arg(long, value_delimiter = ',')]
+    pub inputs: Vec<String>,
+    /// Output columns (default `y` or `y1,y2,...`).
+    #[arg(long, value_delimiter = ',')]
+    pub outputs: Vec<String>,
+    /// Lags to try.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![2, 3, 4, 5])]
+    pub lags: Vec<usize>,
+    /// Neuron counts to try (overrides the single --neurons of the network settings).
+    #[arg(long = "neurons", value_delimiter = ',', default_values_t = vec![6, 8, 10, 12])]
+    pub neuron_grid: Vec<usize>,
+    /// Learning rates to try.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![0.001, 0.01])]
+    pub lr: Vec<f64>,
+    /// Batch sizes to try.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![1, 128])]
+    pub batch: Vec<usize>,
+    #[command(flatten)]
+    pub net: SweepNetArgs,
+    /// Folder for results.csv and report.md (created if missing).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Overwrite existing results.
+    #[arg(long)]
+    pub force: bool,
+    /// Print one JSON object with every result.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The network settings of `identify` minus the neuron count (a grid axis here).
+#[derive(Debug, Clone, Args)]
+pub struct SweepNetArgs {
+    /// Hidden tanh layers.
+    #[arg(long, default_value_t = 1)]
+    pub layers: usize,
+    /// Optimizer (default: adam; rmsprop with --protocol study).
+    #[arg(long, value_enum)]
+    pub optimizer: Option<crate::narx::OptimizerKind>,
+    /// Epochs of the one-step phase.
+    #[arg(long, default_value_t = 100)]
+    pub epochs: usize,
+    /// Base seed; setting i gets its own seed derived from it and i.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// `default` or `study`.
+    #[arg(long, value_enum, default_value_t = crate::narx::Protocol::Default)]
+    pub protocol: crate::narx::Protocol,
+    /// Restarts per setting (default protocol).
+    #[arg(long)]
+    pub restarts: Option<usize>,
+}
+
+/// One grid point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Setting {
+    pub lags: usize,
+    pub neurons: usize,
+    pub lr: f64,
+    pub batch: usize,
+    pub seed: u64,
+}
+
+/// One setting's outcome.
+#[derive(Debug, Clone)]
+pub struct SettingResult {
+    pub setting: Setting,
+    pub evaluation: Result<Vec<OutputEvaluation>, String>,
+    pub train_seconds: f64,
+}
+
+/// The grid in report order: learning rate, batch, lags, neurons.
+pub fn grid(a: &SweepArgs) -> Vec<Setting> {
+    let mut v = Vec::new();
+    for &lr in &a.lr {
+        for &batch in &a.batch {
+            for &lags in &a.lags {
+                for &neurons in &a.neuron_grid {
+                    let i = v.len() as u64;
+                    v.push(Setting {
+                        lags,
+                        neurons,
+                        lr,
+                        batch,
+                        seed: stream_seed(a.net.seed, i),
+                    });
+                }
+            }
+        }
+    }
+    v
+}
+
+fn config(a: &SweepArgs, s: &Setting, inputs: Vec<String>, outputs: Vec<String>) -> NarxConfig {
+    let net = NetArgs {
+        neurons: s.neurons,
+        layers: a.net.layers,
+        output_lags: None,
+        input_lags: None,
+        delay: 1,
+        optimizer: a.net.optimizer,
+        epochs: a.net.epochs,
+        seed: s.seed,
+        protocol: a.net.protocol,
+        restarts: a.net.restarts,
+        sim_steps: None,
+        sim_lr: None,
+        window: None,
+        sim_patience: None,
+        weight_decay: None,
+        validation_fraction: None,
+    };
+    net.config(inputs, outputs, s.lags, s.lr, s.batch)
+}
+
+fn opt(v: Option<f64>) -> String {
+    v.map_or(String::new(), |x| format!("{x}"))
+}
+
+/// `results.csv` text.
+pub fn results_csv(results: &[SettingResult], epochs: usize, outputs: &[String]) -> String {
+    let mut s = String::from(
+        "output,lags,neurons,lr,batch,epochs,seed,r2_osa_train,r2_fr_train,r2_osa_test,r2_fr_test,rmse_fr_test,diverged,train_seconds\n",
+    );
+    for r in results {
+        let st = &r.setting;
+        for (i, name) in outputs.iter().enumerate() {
+            let e = r.evaluation.as_ref().ok().map(|v| &v[i]);
+            let div =
+                e.is_none_or(|e| e.diverged_at_test.is_some() || e.diverged_at_train.is_some());
+            let _ = writeln!(
+                s,
+                "{name},{},{},{},{},{epochs},{},{},{},{},{},{},{},{:.3}",
+                st.lags,
+                st.neurons,
+                st.lr,
+                st.batch,
+                st.seed,
+                opt(e.and_then(|e| e.r2_osa_train)),
+                opt(e.and_then(|e| e.r2_fr_train)),
+                opt(e.and_then(|e| e.r2_osa_test)),
+                opt(e.and_then(|e| e.r2_fr_test)),
+                opt(e.and_then(|e| e.rmse_fr_test)),
+                div as u8,
+                r.train_seconds
+            );
+        }
+    }
+    s
+}
+
+fn md_cell(v: Option<f64>, div: Option<usize>) -> String {
+    match (v, div) {
+        (_, Some(k)) => format!("diverged at {k}"),
+        (Some(x), None) => format!("{x:.4}"),
+        (None, None) => "-".into(),
+    }
+}
+
+/// `report.md` text: per output, learning rate and batch, a table over lags x neurons.
+pub fn report_md(
+    a: &SweepArgs,
+    results: &[SettingResult],
+    outputs: &[String],
+    wall: f64,
+) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# NARX sweep of {}\n", a.data.display());
+    let _ = writeln!(
+        s,
+        "Protocol `{:?}`, {} epochs, {} settings, base seed {}; wall time {:.1} s on {} threads.\n",
+        a.net.protocol,
+        a.net.epochs,
+        results.len(),
+        a.net.seed,
+        wall,
+        rayon::current_num_threads()
+    );
+    for (i, name) in outputs.iter().enumerate() {
+        let _ = writeln!(s, "## Output `{name}`\n");
+        let frs: Vec<Option<f64>> = results
+            .iter()
+            .map(|r| r.evaluation.as_ref().ok().and_then(|v| v[i].r2_fr_test))
+            .collect();
+        let n = frs.len();
+        let c99 = frs.iter().filter(|v| v.is_some_and(|x| x >= 0.99)).count();
+        let c90 = frs.iter().filter(|v| v.is_some_and(|x| x >= 0.9)).count();
+        let ndiv = frs.iter().filter(|v| v.is_none()).count();
+        let _ = writeln!(
+            s,
+            "Free-run test R^2 >= 0.99: {c99} of {n}; >= 0.9: {c90} of {n}; diverged or undefined: {ndiv}.\n"
+        );
+        for &lr in &a.lr {
+            for &batch in &a.batch {
+                let _ = writeln!(s, "### Learning rate {lr}, batch {batch}\n");
+                let _ = writeln!(
+                    s,
+                    "| lags | neurons | R^2 OSA train | R^2 FR train | R^2 OSA test | R^2 FR test | time per model (s) |"
+                );
+                let _ = writeln!(s, "|---:|---:|---:|---:|---:|---:|---:|");
+                for r in results
+                    .iter()
+                    .filter(|r| r.setting.lr == lr && r.setting.batch == batch)
+                {
+                    let st = &r.setting;
+                    match &r.evaluation {
+                        Ok(v) => {
+                            let e = &v[i];
+                            let _ = writeln!(
+                                s,
+                                "| {} | {} | {} | {} | {} | {} | {:.2} |",
+                                st.lags,
+                                st.neurons,
+                                md_cell(e.r2_osa_train, None),
+                                md_cell(e.r2_fr_train, e.diverged_at_train),
+                                md_cell(e.r2_osa_test, None),
+                                md_cell(e.r2_fr_test, e.diverged_at_test),
+                                r.train_seconds
+                            );
+                        }
+                        Err(msg) => {
+                            let _ = writeln!(
+                                s,
+                                "| {} | {} | failed: {msg} | | | | {:.2} |",
+                                st.lags, st.neurons, r.train_seconds
+                            );
+                        }
+                    }
+                }
+                s.push('\n');
+            }
+        }
+    }
+    s
+}
+
+/// Run `sweep`.
+pub fn run(a: SweepArgs) -> anyhow::Result<()> {
+    let csv_path = a.out.join("results.csv");
+    let md_path = a.out.join("report.md");
+    if a.out.is_dir() {
+        check_writable(&csv_path, a.force)?;
+        check_writable(&md_path, a.force)?;
+    }
+    let (train, test) = load_records(&a.data, a.test.as_ref(), &a.inputs, &a.outputs)?;
+    let settings = grid(&a);
+    if settings.is_empty() {
+        anyhow::bail!(
+            "the grid is empty: give at least one value to --lags, --neurons, --lr and --batch"
+        );
+    }
+    for s in &settings {
+        config(&a, s, train.input_names(), train.output_names())
+            .check()
+            .with_context(|| {
+                format!(
+                    "setting lags {} neurons {} lr {} batch {}",
+                    s.lags, s.neurons, s.lr, s.batch
+                )
+            })?;
+    }
+    let outputs = train.output_names();
+    let total = settings.len();
+    let done = AtomicUsize::new(0);
+    let t0 = std::time::Instant::now();
+    eprint!("sweep: 0/{total} settings");
+    let results: Vec<SettingResult> = settings
+        .par_iter()
+        .map(|s| {
+            let cfg = config(&a, s, train.input_names(), train.output_names());
+            let t = std::time::Instant::now();
+            let evaluation = cfg
+                .fit(&train)
+                .and_then(|m| m.evaluate(&train, &test))
+                .map_err(|e| e.to_string());
+            let train_seconds = t.elapsed().as_secs_f64();
+            let k = done.fetch_add(1, Ordering::SeqCst) + 1;
+            eprint!(
+                "\rsweep: {k}/{total} settings, {:.0} s",
+                t0.elapsed().as_secs_f64()
+            );
+            SettingResult {
+                setting: *s,
+                evaluation,
+                train_seconds,
+            }
+        })
+        .collect();
+    let wall = t0.elapsed().as_secs_f64();
+    eprintln!();
+    let csv = results_csv(&results, a.net.epochs, &outputs);
+    let md = report_md(&a, &results, &outputs, wall);
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
+    let mut g = OutputGuard::new(a.force);
+    g.stage(&csv_path, csv.as_bytes())?;
+    g.stage(&md_path, md.as_bytes())?;
+    g.commit()?;
+    if a.json {
+        let rows: Vec<serde_json::Value> = results
+            .iter()
+            .map(|r| {
+                let mut outs = serde_json::Map::new();
+                if let Ok(v) = &r.evaluation {
+                    for e in v {
+                        outs.insert(e.name.clone(), super::identify::evaluation_json(e));
+                    }
+                }
+                serde_json::json!({
+                    "lags": r.setting.lags, "neurons": r.setting.neurons, "lr": r.setting.lr,
+                    "batch": r.setting.batch, "seed": r.setting.seed, "outputs": outs,
+                    "error": r.evaluation.as_ref().err(), "train_seconds": r.train_seconds,
+                })
+            })
+            .collect();
+        println!(
+            "{}",
+            serde_json::json!({"settings": rows, "wall_seconds": wall})
+        );
+    } else {
+        eprintln!(
+            "wrote {} and {} ({wall:.1} s)",
+            csv_path.display(),
+            md_path.display()
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,54 @@
+use std::path::PathBuf;
+
+/// Everything that can go wrong when configuring, training, applying or loading a NARX model.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum NarxError {
+    #[error("`{field}` = {value}: {rule}")]
+    InvalidConfig {
+        field: &'static str,
+        value: String,
+        rule: &'static str,
+    },
+    #[error("{path}: {rows} samples are too few: the lags need {needed} ({why})")]
+    TooShort {
+        path: PathBuf,
+        rows: usize,
+        needed: usize,
+        why: String,
+    },
+    #[error("{path}: output `{name}` is constant ({value}) in the training part; R^2 is undefined for a constant signal and a model of it is meaningless")]
+    ConstantOutput {
+        path: PathBuf,
+        name: String,
+        value: f64,
+    },
+    #[error("{path}: the model expects {what} columns {expected}, the record has {found}; apply a model only to records with the columns it was trained on")]
+    ColumnMismatch {
+        path: PathBuf,
+        what: &'static str,
+        expected: String,
+        found: String,
+    },
+    #[error("{path}: one-step-ahead prediction needs the measured outputs {expected}, which the record lacks")]
+    OutputsNeeded { path: PathBuf, expected: String },
+    #[error(
+        "training of output `{output}` produced non-finite weights (learning rate {lr} too large?)"
+    )]
+    NonFiniteWeights { output: String, lr: f64 },
+    #[error("{path}: not a hystbench NARX model file: {why}")]
+    NotAModel { path: PathBuf, why: String },
+    #[error("{path}: model file version {found} is not supported (this hystbench reads version {supported}); retrain the model with this version")]
+    Version {
+        path: PathBuf,
+        found: String,
+        supported: u32,
+    },
+    #[error("{path}: damaged model file: {why}")]
+    Damaged { path: PathBuf, why: String },
+    #[error("{path}: cannot read: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+}

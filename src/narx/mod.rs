@@ -1,0 +1,31 @@
+//! # NARX-MLP identification
+//!
+//! The source study's identifier (one MISO network per output, y(k) = F[y(k-1..k-n),
+//! u(k-1..k-n)], F a tanh MLP), made reliable in free run and fast:
+//!
+//! - [`regressors`]: lags, delay, standardisation; extra exogenous signals (features from the
+//!   effect library) enter exactly like inputs;
+//! - [`mlp`]: a hand-written network with an optional linear bypass;
+//! - [`train`]: RMSProp / Adam one-step training, least-squares output-layer start,
+//!   simulation-error training over windows, free run with divergence detection;
+//! - [`config`]: the unfitted [`NarxConfig`] (protocol `default` or `study`);
+//! - [`model`]: the fitted [`FittedNarx`], prediction, scores and the versioned model file;
+//! - [`synthetic`]: records of known plants from the effect library, for tests and benches.
+//!
+//! ## References
+//! - S. Chen, S. A. Billings, P. M. Grant, Int. J. Control 51(6):1191-1214, 1990.
+//! - K. S. Narendra, K. Parthasarathy, IEEE TNN 1(1):4-27, 1990.
+//! - A. H. Ribeiro, L. A. Aguirre, Neurocomputing 316:222-231, 2018.
+
+pub mod config;
+mod error;
+pub mod mlp;
+pub mod model;
+pub mod regressors;
+pub mod synthetic;
+pub mod train;
+
+pub use config::{NarxConfig, OptimizerKind, Protocol, RobustSettings};
+pub use error::NarxError;
+pub use model::{FittedNarx, Mode, OutputPrediction};
+pub use regressors::Lags;

@@ -1,0 +1,629 @@
+//! The fitted NARX model: fitting (the driver), prediction, scores and the model file.
+
+use super::config::{NarxConfig, Protocol};
+use super::mlp::Mlp;
+use super::regressors::{Regressor, RegressorForm, Series, Standardiser};
+use super::train::{
+    free_run_fast, free_run_score, init_output_layer, train_one_step, train_simulation_error,
+    Design, OneStepRecord, SimulationRecord,
+};
+use super::NarxError;
+use crate::data::IoRecord;
+use crate::effect::noise::stream_seed;
+use crate::metrics::{scores, Scores};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// The model file's `format` field.
+pub const FORMAT: &str = "hystbench-narx";
+/// The model file version this code writes and reads.
+pub const VERSION: u32 = 1;
+
+/// A free run is declared diverged when it leaves the training output range widened by this
+/// many ranges on each side (or becomes non-finite).
+pub const DIVERGENCE_RANGES: f64 = 5.0;
+
+/// How one restart went.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RestartRecord {
+    pub seed: u64,
+    pub one_step: OneStepRecord,
+    pub simulation: Option<SimulationRecord>,
+    /// Free-run validation MSE (standardised units) that selected the restart.
+    pub selection_mse: Option<f64>,
+}
+
+/// Training record of one output.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OutputTraining {
+    pub train_samples: usize,
+    pub validation_samples: usize,
+    pub restarts: Vec<RestartRecord>,
+    pub chosen_restart: usize,
+}
+
+/// One output's network and scaling.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OutputModel {
+    pub name: String,
+    pub scaling: Standardiser,
+    /// Training output range (physical units), for divergence detection.
+    pub train_min: f64,
+    pub train_max: f64,
+    /// Lags, form and difference scaling of the regressor.
+    pub regressor: Regressor,
+    pub network: Mlp,
+    pub training: OutputTraining,
+}
+
+/// A fitted NARX model: one MISO network per output.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FittedNarx {
+    pub config: NarxConfig,
+    /// Scaling of each exogenous signal (training statistics), in `config.inputs` order.
+    pub input_scaling: Vec<Standardiser>,
+    pub outputs: Vec<OutputModel>,
+    /// Wall-clock training time (informative, not part of any result).
+    pub train_seconds: f64,
+}
+
+/// Prediction mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Mode {
+    /// Measured past outputs in the regressor.
+    OneStep,
+    /// The model's own past outputs (simulation).
+    FreeRun,
+}
+
+/// A prediction of one output.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutputPrediction {
+    pub name: String,
+    /// Physical units; samples before `start` are the measured ones (the initial condition).
+    /// Shorter than the record when the free run diverged.
+    pub values: Vec<f64>,
+    pub start: usize,
+    /// First sample where the free run left the plausible range.
+    pub diverged_at: Option<usize>,
+}
+
+impl OutputPrediction {
+    /// Scores against the measured signal over `start..`; `None` if diverged.
+    pub fn scores(&self, measured: &[f64]) -> Option<Scores> {
+        if self.diverged_at.is_some() || self.values.len() != measured.len() {
+            return None;
+        }
+        Some(scores(&measured[self.start..], &self.values[self.start..]))
+    }
+}
+
+fn names_str(v: &[String]) -> String {
+    format!("[{}]", v.join(", "))
+}
+
+impl NarxConfig {
+    /// Fit one network per output on a training record whose inputs and outputs are the
+    /// configuration's signals (in order).
+    pub fn fit(&self, train: &IoRecord) -> Result<FittedNarx, NarxError> {
+        self.check()?;
+        let t0 = std::time::Instant::now();
+        if train.input_names() != self.inputs {
+            return Err(NarxError::ColumnMismatch {
+                path: train.path.clone(),
+                what: "input",
+                expected: names_str(&self.inputs),
+                found: names_str(&train.input_names()),
+            });
+        }
+        if train.output_names() != self.outputs {
+            return Err(NarxError::ColumnMismatch {
+                path: train.path.clone(),
+                what: "output",
+                expected: names_str(&self.outputs),
+                found: names_str(&train.output_names()),
+            });
+        }
+        let n = train.len();
+        let start = self.lags.start();
+        let needed = start + 2;
+        if n < needed {
+            return Err(NarxError::TooShort {
+                path: train.path.clone(),
+                rows: n,
+                needed,
+                why: format!(
+                    "{} output lags, {} input lags with delay {} need {} initial samples, plus at least 2 to train on",
+                    self.lags.output, self.lags.input, self.lags.delay, start
+                ),
+            });
+        }
+        for o in &train.outputs {
+            let first = o.values[0];
+            if o.values.iter().all(|v| *v == first) {
+                return Err(NarxError::ConstantOutput {
+                    path: train.path.clone(),
+                    name: o.name.clone(),
+                    value: first,
+                });
+            }
+        }
+        let input_scaling: Vec<Standardiser> = train
+            .inputs
+            .iter()
+            .map(|s| Standardiser::fit(&s.values))
+            .collect();
+        let u: Vec<Vec<f64>> = train
+            .inputs
+            .iter()
+            .zip(&input_scaling)
+            .map(|(s, sc)| sc.apply(&s.values))
+            .collect();
+        let restarts = match self.protocol {
+            Protocol::Default => self.robust.restarts_for(n),
+            Protocol::Study => 1,
+        };
+        // every (output, restart) job in parallel; results in order
+        let jobs: Vec<(usize, usize)> = (0..train.outputs.len())
+            .flat_map(|o| (0..restarts).map(move |r| (o, r)))
+            .collect();
+        let prepared: Vec<(Standardiser, Series)> = train
+            .outputs
+            .iter()
+            .map(|o| {
+                let sc = Standardiser::fit(&o.values);
+                (
+                    sc,
+                    Series {
+                        y: sc.apply(&o.values),
+                        u: u.clone(),
+                    },
+                )
+            })
+            .collect();
+        let regressors: Vec<Regressor> = prepared
+            .iter()
+            .map(|(_, s)| {
+                let form = match self.protocol {
+                    Protocol::Default => RegressorForm::Incremental,
+                    Protocol::Study => RegressorForm::Lagged,
+                };
+                Regressor::fit(self.lags, form, s)
+            })
+            .collect();
+        let results: Vec<(Mlp, RestartRecord, usize, usize)> = jobs
+            .par_iter()
+            .map(|&(o, r)| {
+                let seed = stream_seed(self.seed, (o as u64) << 32 | r as u64);
+                self.fit_one(&prepared[o].1, &regressors[o], seed)
+            })
+            .collect();
+        let mut outputs = Vec::new();
+        for (o, sig) in train.outputs.iter().enumerate() {
+            let mine = &results[o * restarts..(o + 1) * restarts];
+            let mut chosen = 0;
+            for (i, r) in mine.iter().enumerate() {
+                let better = match (r.1.selection_mse, mine[chosen].1.selection_mse) {
+                    (Some(a), Some(b)) => a < b,
+                    (Some(_), None) => true,
+                    _ => false,
+                };
+                if better {
+                    chosen = i;
+                }
+            }
+            let net = mine[chosen].0.clone();
+            if !net.params.iter().all(|p| p.is_finite()) {
+                return Err(NarxError::NonFiniteWeights {
+                    output: sig.name.clone(),
+                    lr: self.lr,
+                });
+            }
+            outputs.push(OutputModel {
+                name: sig.name.clone(),
+                scaling: prepared[o].0,
+                train_min: sig.values.iter().copied().fold(f64::INFINITY, f64::min),
+                train_max: sig.values.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+                regressor: regressors[o].clone(),
+                network: net,
+                training: OutputTraining {
+                    train_samples: mine[chosen].2,
+                    validation_samples: mine[chosen].3,
+                    restarts: mine.iter().map(|r| r.1.clone()).collect(),
+                    chosen_restart: chosen,
+                },
+            });
+        }
+        Ok(FittedNarx {
+            config: self.clone(),
+            input_scaling,
+            outputs,
+            train_seconds: t0.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// One restart for one output (standardised series). Returns the network, its record, and
+    /// the numbers of training and validation samples.
+    fn fit_one(
+        &self,
+        s: &Series,
+        reg: &Regressor,
+        seed: u64,
+    ) -> (Mlp, RestartRecord, usize, usize) {
+        let lags = self.lags;
+        let start = lags.start();
+        let n = s.len();
+        let sizes = self.sizes();
+        match self.protocol {
+            Protocol::Study => {
+                let mut net = Mlp::glorot(&sizes, false, stream_seed(seed, 1));
+                let d = Design::new(s, reg);
+                let rec = train_one_step(
+                    &mut net,
+                    &d,
+                    None,
+                    self.optimizer,
+                    self.lr,
+                    self.batch,
+                    self.epochs,
+                    None,
+                    stream_seed(seed, 2),
+                );
+                (
+                    net,
+                    RestartRecord {
+                        seed,
+                        one_step: rec,
+                        simulation: None,
+                        selection_mse: None,
+                    },
+                    n,
+                    0,
+                )
+            }
+            Protocol::Default => {
+                let r = &self.robust;
+                let n_val = (n as f64 * r.validation_fraction).round() as usize;
+                // validation needs a few samples beyond the initial lags; otherwise score on all
+                let (fit_end, val_from) = if n_val >= 8 && n - n_val >= start + 8 {
+                    (n - n_val, n - n_val)
+                } else {
+                    (n, start)
+                };
+                let fit = s.slice(0..fit_end);
+                let d_fit = Design::new(&fit, reg);
+                let d_val = (fit_end < n).then(|| Design::new(&s.slice(fit_end - start..n), reg));
+                let mut net = Mlp::glorot(&sizes, r.bypass, stream_seed(seed, 1));
+                init_output_layer(&mut net, &d_fit, 1e-8);
+                let one_step = train_one_step(
+                    &mut net,
+                    &d_fit,
+                    d_val.as_ref().or(Some(&d_fit)),
+                    self.optimizer,
+                    self.lr,
+                    self.batch,
+                    self.epochs,
+                    Some(r.patience),
+                    stream_seed(seed, 2),
+                );
+                let (lo, hi) = plausible_range(&s.y);
+                // The validation free run starts half-way into the fitting part (away from any
+                // start-up transient) and is scored on the validation part.
+                let sim_from = (fit_end / 2).max(start).min(val_from);
+                let val = s.slice(sim_from - start..n);
+                let vf = val_from + start - sim_from;
+                let sim = train_simulation_error(
+                    &mut net,
+                    reg,
+                    s,
+                    fit_end,
+                    &val,
+                    vf,
+                    lo,
+                    hi,
+                    r,
+                    stream_seed(seed, 3),
+                );
+                let selection_mse = free_run_score(&net, reg, &val, vf, lo, hi);
+                (
+                    net,
+                    RestartRecord {
+                        seed,
+                        one_step,
+                        simulation: Some(sim),
+                        selection_mse,
+                    },
+                    fit_end,
+                    n - fit_end,
+                )
+            }
+        }
+    }
+}
+
+/// The training range widened by [`DIVERGENCE_RANGES`] ranges on each side.
+fn plausible_range(y: &[f64]) -> (f64, f64) {
+    let lo = y.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = y.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let r = (hi - lo).max(f64::MIN_POSITIVE);
+    (lo - DIVERGENCE_RANGES * r, hi + DIVERGENCE_RANGES * r)
+}
+
+impl FittedNarx {
+    /// Check that a record has the model's inputs (names and order); outputs are optional.
+    fn check_record(&self, rec: &IoRecord) -> Result<(), NarxError> {
+        if rec.input_names() != self.config.inputs {
+            return Err(NarxError::ColumnMismatch {
+                path: rec.path.clone(),
+                what: "input",
+                expected: names_str(&self.config.inputs),
+                found: names_str(&rec.input_names()),
+            });
+        }
+        let start = self.config.lags.start();
+        if rec.len() < start + 1 {
+            return Err(NarxError::TooShort {
+                path: rec.path.clone(),
+                rows: rec.len(),
+                needed: start + 1,
+                why: format!("{start} initial samples plus at least one to predict"),
+            });
+        }
+        Ok(())
+    }
+
+    fn series(&self, rec: &IoRecord, o: &OutputModel, measured: Option<&[f64]>) -> Series {
+        Series {
+            y: match measured {
+                Some(y) => o.scaling.apply(y),
+                // at rest: physical zero
+                None => vec![o.scaling.apply(&[0.0])[0]; rec.len()],
+            },
+            u: rec
+                .inputs
+                .iter()
+                .zip(&self.input_scaling)
+                .map(|(s, sc)| sc.apply(&s.values))
+                .collect(),
+        }
+    }
+
+    /// Predict every output of a record. One-step needs the measured outputs; a free run uses
+    /// the first measured outputs as its initial condition (zeros when the record has none).
+    pub fn predict(&self, rec: &IoRecord, mode: Mode) -> Result<Vec<OutputPrediction>, NarxError> {
+        self.check_record(rec)?;
+        let lags = self.config.lags;
+        let start = lags.start();
+        let mut out = Vec::new();
+        for o in &self.outputs {
+            let measured = rec
+                .outputs
+                .iter()
+                .find(|s| s.name == o.name)
+                .map(|s| &s.values[..]);
+            let s = self.series(rec, o, measured);
+            let (z, diverged_at) = match mode {
+                Mode::OneStep => {
+                    if measured.is_none() {
+                        return Err(NarxError::OutputsNeeded {
+                            path: rec.path.clone(),
+                            expected: names_str(&self.config.outputs),
+                        });
+                    }
+                    let reg = &o.regressor;
+                    let d = Design::new(&s, reg);
+                    let mut acts = vec![0.0; o.network.acts_len()];
+                    let mut z = s.y[..start].to_vec();
+                    for (i, row) in d.x.chunks_exact(d.width).enumerate() {
+                        o.network.forward(row, &mut acts);
+                        z.push(
+                            reg.base(&s.y, start + i) + reg.scale() * o.network.output(&acts)[0],
+                        );
+                    }
+                    (z, None)
+                }
+                Mode::FreeRun => {
+                    let r = (o.train_max - o.train_min).max(f64::MIN_POSITIVE);
+                    let lo = (o.train_min - DIVERGENCE_RANGES * r - o.scaling.mean) / o.scaling.std;
+                    let hi = (o.train_max + DIVERGENCE_RANGES * r - o.scaling.mean) / o.scaling.std;
+                    free_run_fast(&o.network, &o.regressor, &s, lo, hi)
+                }
+            };
+            out.push(OutputPrediction {
+                name: o.name.clone(),
+                values: z.iter().map(|v| o.scaling.invert(*v)).collect(),
+                start,
+                diverged_at,
+            });
+        }
+        Ok(out)
+    }
+
+    /// The model file text.
+    pub fn to_json(&self) -> String {
+        let v = serde_json::json!({
+            "format": FORMAT,
+            "version": VERSION,
+            "model": self,
+        });
+        serde_json::to_string_pretty(&v).expect("a model serialises")
+    }
+
+    /// Read a model file; another format or version, or a damaged file, is a clear error.
+    pub fn from_json(path: &Path, text: &str) -> Result<FittedNarx, NarxError> {
+        let v: serde_json::Value = serde_json::from_str(text).map_err(|e| NarxError::Damaged {
+            path: path.to_path_buf(),
+            why: format!("not valid JSON ({e})"),
+        })?;
+        match v.get("format").and_then(|f| f.as_str()) {
+            Some(FORMAT) => {}
+            Some(other) => {
+                return Err(NarxError::NotAModel {
+                    path: path.to_path_buf(),
+                    why: format!("`format` is \"{other}\", expected \"{FORMAT}\""),
+                })
+            }
+            None => {
+                return Err(NarxError::NotAModel {
+                    path: path.to_path_buf(),
+                    why: format!("no `format` field (expected \"{FORMAT}\")"),
+                })
+            }
+        }
+        match v.get("version") {
+            Some(x) if x.as_u64() == Some(VERSION as u64) => {}
+            other => {
+                return Err(NarxError::Version {
+                    path: path.to_path_buf(),
+                    found: other.map_or("(missing)".into(), |x| x.to_string()),
+                    supported: VERSION,
+                })
+            }
+        }
+        let model = v.get("model").ok_or_else(|| NarxError::Damaged {
+            path: path.to_path_buf(),
+            why: "no `model` field".into(),
+        })?;
+        let m: FittedNarx =
+            serde_json::from_value(model.clone()).map_err(|e| NarxError::Damaged {
+                path: path.to_path_buf(),
+                why: e.to_string(),
+            })?;
+        m.validate().map_err(|why| NarxError::Damaged {
+            path: path.to_path_buf(),
+            why,
+        })?;
+        Ok(m)
+    }
+
+    /// Internal consistency of a loaded model.
+    fn validate(&self) -> Result<(), String> {
+        self.config.check().map_err(|e| format!("config: {e}"))?;
+        if self.input_scaling.len() != self.config.inputs.len() {
+            return Err(format!(
+                "{} input scalings for {} inputs",
+                self.input_scaling.len(),
+                self.config.inputs.len()
+            ));
+        }
+        if self.outputs.len() != self.config.outputs.len() {
+            return Err(format!(
+                "{} output models for {} outputs",
+                self.outputs.len(),
+                self.config.outputs.len()
+            ));
+        }
+        let width = self.config.lags.width(self.config.inputs.len());
+        for (o, name) in self.outputs.iter().zip(&self.config.outputs) {
+            if o.regressor.lags != self.config.lags
+                || o.regressor.du_gain.len() != self.config.inputs.len()
+                || !(o.regressor.dy_gain.is_finite()
+                    && o.regressor.du_gain.iter().all(|g| g.is_finite()))
+            {
+                return Err(format!(
+                    "output `{}`: regressor does not match the configuration",
+                    o.name
+                ));
+            }
+            if &o.name != name {
+                return Err(format!(
+                    "output model `{}` where `{name}` was expected",
+                    o.name
+                ));
+            }
+            let net = &o.network;
+            if net.sizes.len() < 3 || net.sizes[0] != width || net.sizes[net.sizes.len() - 1] != 1 {
+                return Err(format!(
+                    "output `{}`: network sizes {:?} do not fit a regressor of width {width}",
+                    o.name, net.sizes
+                ));
+            }
+            let np = super::mlp::parameter_count(&net.sizes, net.bypass);
+            if net.params.len() != np {
+                return Err(format!(
+                    "output `{}`: {} parameters, the network shape needs {np}",
+                    o.name,
+                    net.params.len()
+                ));
+            }
+            if let Some(i) = net.params.iter().position(|p| !p.is_finite()) {
+                return Err(format!("output `{}`: parameter {i} is not finite", o.name));
+            }
+            let sc = [o.scaling.mean, o.scaling.std, o.train_min, o.train_max];
+            if !sc.iter().all(|v| v.is_finite()) || o.scaling.std <= 0.0 {
+                return Err(format!("output `{}`: invalid scaling", o.name));
+            }
+        }
+        for (s, name) in self.input_scaling.iter().zip(&self.config.inputs) {
+            if !(s.mean.is_finite() && s.std.is_finite() && s.std > 0.0) {
+                return Err(format!("input `{name}`: invalid scaling"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Read a model file from disk.
+    pub fn load(path: &Path) -> Result<FittedNarx, NarxError> {
+        let text = std::fs::read_to_string(path).map_err(|source| NarxError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        FittedNarx::from_json(path, &text)
+    }
+}
+
+/// Train and test scores of one output, as the source study reported them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OutputEvaluation {
+    pub name: String,
+    pub r2_osa_train: Option<f64>,
+    pub r2_fr_train: Option<f64>,
+    pub r2_osa_test: Option<f64>,
+    pub r2_fr_test: Option<f64>,
+    pub rmse_fr_test: Option<f64>,
+    pub fr_test: Option<Scores>,
+    /// Sample of the training free run where it diverged.
+    pub diverged_at_train: Option<usize>,
+    /// Sample of the test free run where it diverged.
+    pub diverged_at_test: Option<usize>,
+}
+
+impl FittedNarx {
+    /// One-step and free-run scores on a training and a test record (both with outputs).
+    pub fn evaluate(
+        &self,
+        train: &IoRecord,
+        test: &IoRecord,
+    ) -> Result<Vec<OutputEvaluation>, NarxError> {
+        let osa_tr = self.predict(train, Mode::OneStep)?;
+        let fr_tr = self.predict(train, Mode::FreeRun)?;
+        let osa_te = self.predict(test, Mode::OneStep)?;
+        let fr_te = self.predict(test, Mode::FreeRun)?;
+        let measured = |rec: &IoRecord, name: &str| -> Vec<f64> {
+            rec.outputs
+                .iter()
+                .find(|s| s.name == name)
+                .map(|s| s.values.clone())
+                .unwrap_or_default()
+        };
+        let mut out = Vec::new();
+        for (i, o) in self.outputs.iter().enumerate() {
+            let ytr = measured(train, &o.name);
+            let yte = measured(test, &o.name);
+            let fr_test = fr_te[i].scores(&yte);
+            out.push(OutputEvaluation {
+                name: o.name.clone(),
+                r2_osa_train: osa_tr[i].scores(&ytr).and_then(|s| s.r2),
+                r2_fr_train: fr_tr[i].scores(&ytr).and_then(|s| s.r2),
+                r2_osa_test: osa_te[i].scores(&yte).and_then(|s| s.r2),
+                r2_fr_test: fr_test.and_then(|s| s.r2),
+                rmse_fr_test: fr_test.map(|s| s.rmse),
+                fr_test,
+                diverged_at_train: fr_tr[i].diverged_at,
+                diverged_at_test: fr_te[i].diverged_at,
+            });
+        }
+        Ok(out)
+    }
+}
