@@ -205,9 +205,9 @@ mod tests {
         assert!(c.creep && c.dynamics && !c.coupling);
         let c = GreyBoxConfig::from_effect_list("hysteresis,coupling").unwrap();
         assert_eq!(c.hysteresis, Some(HysteresisOperator::Combined));
+        assert!(c.coupling);
         let c = GreyBoxConfig::from_effect_list("prandtl-ishlinskii").unwrap();
         assert_eq!(c.hysteresis, Some(HysteresisOperator::PrandtlIshlinskii));
-        assert!(c.coupling);
         assert_eq!(
             GreyBoxConfig::from_effect_list("none").unwrap().effects(),
             vec![]
