@@ -14,9 +14,10 @@ use std::time::Instant;
 pub fn creep_time_constants(samples: usize, ts: f64) -> Result<Vec<f64>, usize> {
     let k_min = (5.0 * ts).log10().ceil() as i32;
     let span = samples as f64 * ts / 3.0;
-    let k_max = span.log10().round() as i32;
+    // the largest power of ten up to about twice a third of the record
+    let k_max = (span.log10() + 0.3).floor() as i32;
     if k_max < k_min + 2 {
-        let needed = (3.0 * 10f64.powf(k_min as f64 + 1.5) / ts).ceil() as usize;
+        let needed = (3.0 * 10f64.powf(k_min as f64 + 1.7) / ts).ceil() as usize;
         return Err(needed);
     }
     Ok((k_min..=k_max).map(|k| 10f64.powi(k)).collect())
