@@ -72,7 +72,11 @@ fn simulate(dir: &Path, plant: &str, scenario: &str, name: &str) -> PathBuf {
 }
 
 fn fit_json(data: &Path, effects: &str, out: &Path) -> serde_json::Value {
-    let o = run(&[
+    fit_json_with(data, effects, out, &[])
+}
+
+fn fit_json_with(data: &Path, effects: &str, out: &Path, extra: &[&str]) -> serde_json::Value {
+    let mut args = vec![
         "fit",
         "--data",
         data.to_str().unwrap(),
@@ -81,7 +85,9 @@ fn fit_json(data: &Path, effects: &str, out: &Path) -> serde_json::Value {
         "--out",
         out.to_str().unwrap(),
         "--json",
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    let o = run(&args);
     assert!(o.status.success(), "{effects}: {}", stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     eprintln!("{effects}: {v}");
@@ -113,6 +119,27 @@ fn fits_a_40k_sample_siso_record_at_1khz() {
     let m = FittedGreyBox::load(&dir.path().join("m.json")).unwrap();
     let d = m.plant.spec.outputs[0].dynamics.unwrap();
     assert!((d.natural_frequency_hz - 80.0).abs() < 0.8, "{d:?}");
+    let v = fit_json(
+        &data,
+        "hysteresis,dynamics",
+        &dir.path().join("m_creep.json"),
+    );
+    let ratio = v["rmse"].as_f64().unwrap() / rmse;
+    assert!(ratio >= 3.0, "without creep: ratio {ratio}");
+}
+
+/// The same record without each effect in turn (long: run with --ignored).
+#[test]
+#[ignore]
+fn siso_40k_without_each_effect() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = simulate(dir.path(), PLANT_1, SCENARIO_1, "siso");
+    let full = fit_json(
+        &data,
+        "hysteresis,creep,dynamics",
+        &dir.path().join("m.json"),
+    );
+    let rmse = full["rmse"].as_f64().unwrap();
     for (effects, name) in [
         ("creep,dynamics", "hysteresis"),
         ("hysteresis,dynamics", "creep"),
@@ -130,10 +157,13 @@ fn fits_a_40k_sample_mimo_record_at_1khz() {
     let data = simulate(dir.path(), PLANT_2, SCENARIO_2, "mimo");
     let text = std::fs::read_to_string(&data).unwrap();
     assert!(text.starts_with("t,u1,u2,y1,y2\n"));
-    let full = fit_json(
+    // 15 plays per path keep the test short (the default is 39)
+    let plays = ["--plays", "15"];
+    let full = fit_json_with(
         &data,
         "hysteresis,dynamics,coupling",
         &dir.path().join("m.json"),
+        &plays,
     );
     assert_eq!(
         full["effects"],
@@ -148,7 +178,12 @@ fn fits_a_40k_sample_mimo_record_at_1khz() {
     assert!(r1 >= 0.9999 && r2 >= 0.9999, "{r1} {r2}");
     let mean = full["r2"].as_f64().unwrap();
     assert!((mean - 0.5 * (r1 + r2)).abs() < 1e-12);
-    let without = fit_json(&data, "hysteresis,dynamics", &dir.path().join("m2.json"));
+    let without = fit_json_with(
+        &data,
+        "hysteresis,dynamics",
+        &dir.path().join("m2.json"),
+        &plays,
+    );
     let ratio = without["rmse"].as_f64().unwrap() / full["rmse"].as_f64().unwrap();
     assert!(ratio >= 3.0, "without coupling: ratio {ratio}");
 }

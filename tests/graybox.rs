@@ -40,7 +40,9 @@ fn record(plant: &Plant, scenario_json: &str) -> IoRecord {
 }
 
 fn fit(rec: &IoRecord, effects: &str) -> FittedGreyBox {
-    let cfg = GreyBoxConfig::from_effect_list(effects).unwrap();
+    let mut cfg = GreyBoxConfig::from_effect_list(effects).unwrap();
+    // fewer plays than the default 39 keep the tests short
+    cfg.options.plays = 15;
     let t = std::time::Instant::now();
     let m = cfg.fit(rec).unwrap();
     eprintln!(
@@ -233,4 +235,40 @@ fn each_effect_cuts_the_rms_error_at_least_3x() {
         rms_ratio(&rec2, "hysteresis,dynamics,coupling", "hysteresis,dynamics") >= 3.0,
         "coupling"
     );
+}
+
+/// A fit stopped after one iteration says it did not converge, keeps finite parameters and
+/// still writes a valid file; the model's config refits with one more effect.
+#[test]
+fn unconverged_fit_is_reported_and_kept() {
+    let p = plant("bouc_wen_piezo.json");
+    let rec = record(&p, SCENARIO_10K);
+    let mut cfg = GreyBoxConfig::from_effect_list("bouc-wen,dynamics").unwrap();
+    cfg.options.max_iterations = 1;
+    let m = cfg.fit(&rec).unwrap();
+    assert!(!m.fit.converged);
+    assert!(m.fit.outputs[0].message.contains("did not converge"));
+    assert!(m.fit.rmse.is_finite());
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("m.json");
+    m.save(&path, false).unwrap();
+    let back = FittedGreyBox::load(&path).unwrap();
+    assert_eq!(back.plant.spec, m.plant.spec);
+    assert!(m.save(&path, false).is_err(), "no overwrite without force");
+    // the loaded model simulates what the fit scored
+    let y = back.simulate(&rec).unwrap();
+    let s = hystbench::metrics::rmse(&rec.outputs[0].values, &y[0]);
+    assert!((s - m.fit.rmse).abs() <= 1e-12 * (1.0 + s));
+    // refit with one more effect from the model's config
+    let lin = GreyBoxConfig::from_effect_list("dynamics")
+        .unwrap()
+        .fit(&rec)
+        .unwrap();
+    let more = lin
+        .config()
+        .with_effect(hystbench::effect::EffectName::Hysteresis)
+        .fit(&rec)
+        .unwrap();
+    assert_eq!(more.config().effect_list(), "hysteresis,dynamics");
+    assert!(more.fit.rmse * 3.0 < lin.fit.rmse);
 }

@@ -14,9 +14,10 @@ use std::time::Instant;
 pub fn creep_time_constants(samples: usize, ts: f64) -> Result<Vec<f64>, usize> {
     let k_min = (5.0 * ts).log10().ceil() as i32;
     let span = samples as f64 * ts / 3.0;
-    let k_max = span.log10().round() as i32;
+    // the largest power of ten up to about twice a third of the record
+    let k_max = (span.log10() + 0.3).floor() as i32;
     if k_max < k_min + 2 {
-        let needed = (3.0 * 10f64.powf(k_min as f64 + 1.5) / ts).ceil() as usize;
+        let needed = (3.0 * 10f64.powf(k_min as f64 + 1.7) / ts).ceil() as usize;
         return Err(needed);
     }
     Ok((k_min..=k_max).map(|k| 10f64.powi(k)).collect())
@@ -76,6 +77,36 @@ pub fn slow_fraction(u: &[f64], ts: f64, tau: f64) -> f64 {
     } else {
         0.0
     }
+}
+
+/// Initialise (plus `extra` starts), then two Levenberg-Marquardt stages: creep held fixed from
+/// each start, then everything from the best.
+fn fit_problem(
+    prob: &OutputProblem,
+    coarse: &OutputProblem,
+    extra: Vec<Vec<f64>>,
+    options: &super::FitOptions,
+) -> Result<LmResult, GreyBoxError> {
+    let mut starts = prob.initial(coarse, 3);
+    starts.extend(extra);
+    let stage1 = prob.without_creep();
+    let mut best: Option<LmResult> = None;
+    let mut iterations = 0;
+    for th0 in starts {
+        let r = levenberg_marquardt(prob, th0, &stage1, options)?;
+        iterations += r.iterations;
+        if best.as_ref().is_none_or(|b| r.eval.cost < b.eval.cost) {
+            best = Some(r);
+        }
+    }
+    let mut res = best.expect("at least one start");
+    if stage1.iter().any(|f| !f) {
+        let all = vec![true; prob.n_theta()];
+        res = levenberg_marquardt(prob, res.theta, &all, options)?;
+        iterations += res.iterations;
+    }
+    res.iterations = iterations;
+    Ok(res)
 }
 
 impl GreyBoxConfig {
@@ -230,52 +261,48 @@ impl GreyBoxConfig {
         let mut runs = Vec::new();
         for (o, out) in train.outputs.iter().enumerate() {
             let st = self.structure(&train, o, &taus)?;
-            let prob = OutputProblem::new(
-                &out.name,
-                &out.values,
-                u.clone(),
-                input_names.clone(),
-                train.ts,
-                &st,
-                self.options.plays,
-            );
-            let coarse = OutputProblem::new(
-                &out.name,
-                &out.values,
-                u.clone(),
-                input_names.clone(),
-                train.ts,
-                &st,
-                self.options.plays.min(3),
-            );
             let t0 = Instant::now();
-            let starts = prob.initial(&coarse, 3);
-            drop(coarse);
-            let t1 = Instant::now();
-            // stage 1: creep held at zero, from each start; stage 2: everything, from the best
-            let stage1 = prob.without_creep();
-            let mut best: Option<LmResult> = None;
+            let u = &u;
+            let names = &input_names;
+            let problem = |st: &OutputStructure, plays: usize| {
+                OutputProblem::new(
+                    &out.name,
+                    &out.values,
+                    u.clone(),
+                    names.clone(),
+                    train.ts,
+                    st,
+                    plays,
+                )
+            };
+            let prob = problem(&st, self.options.plays);
+            // the combined operator also starts from the Bouc-Wen-only fit, so that it is never
+            // worse than `bouc-wen` (its own starts keep it never worse than PI)
+            let mut extra = Vec::new();
             let mut iterations = 0;
-            for th0 in starts {
-                let r = levenberg_marquardt(&prob, th0, &stage1, &self.options)?;
+            if st.operator == Some(HysteresisOperator::Combined) {
+                let st_bw = OutputStructure {
+                    operator: Some(HysteresisOperator::BoucWen),
+                    ..st.clone()
+                };
+                let bw = problem(&st_bw, 0);
+                let r = fit_problem(&bw, &problem(&st_bw, 0), Vec::new(), &self.options)?;
                 iterations += r.iterations;
-                if best.as_ref().is_none_or(|b| r.eval.cost < b.eval.cost) {
-                    best = Some(r);
-                }
+                extra.push(prob.theta_from_bouc_wen(&bw, &r.theta));
             }
-            let mut res = best.expect("at least one start");
-            if stage1.iter().any(|f| !f) {
-                let all = vec![true; prob.n_theta()];
-                res = levenberg_marquardt(&prob, res.theta, &all, &self.options)?;
-                iterations += res.iterations;
-            }
-            res.iterations = iterations;
+            let res = fit_problem(
+                &prob,
+                &problem(&st, self.options.plays.min(3)),
+                extra,
+                &self.options,
+            )?;
+            let mut res = res;
+            res.iterations += iterations;
             if std::env::var_os("HYSTBENCH_TRACE").is_some() {
                 eprintln!(
-                    "{}: initialisation {:.2} s, Levenberg-Marquardt {:.2} s ({} iterations)",
+                    "{}: {:.2} s ({} iterations)",
                     out.name,
-                    (t1 - t0).as_secs_f64(),
-                    t1.elapsed().as_secs_f64(),
+                    t0.elapsed().as_secs_f64(),
                     res.iterations
                 );
             }

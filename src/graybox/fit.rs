@@ -143,6 +143,9 @@ impl LtiChain {
     }
 }
 
+/// One column of the Jacobian: (parameter index, d yhat / d theta before projection).
+type JacobianJob<'a> = Box<dyn Fn() -> (usize, Vec<f64>) + Sync + 'a>;
+
 /// Everything needed to evaluate the model of one output for a parameter vector.
 pub(crate) struct OutputProblem<'a> {
     pub name: String,
@@ -486,17 +489,16 @@ impl<'a> OutputProblem<'a> {
                     2
                 }
             };
-            for c in k..k + ncols {
-                let coef = ev.coef[c];
+            for (col, &coef) in phi[k..k + ncols].iter().zip(&ev.coef[k..k + ncols]) {
                 if coef != 0.0 {
-                    for (wv, v) in w.iter_mut().zip(phi[c].iter()) {
+                    for (wv, v) in w.iter_mut().zip(col.iter()) {
                         *wv += coef * v;
                     }
                 }
             }
             k += ncols;
         }
-        let mut jobs: Vec<Box<dyn Fn() -> (usize, Vec<f64>) + Sync + '_>> = Vec::new();
+        let mut jobs: Vec<JacobianJob<'_>> = Vec::new();
         let w = &w;
         let creep_ref = creep.as_ref();
         if let Some(d0) = dynamics {
@@ -590,6 +592,39 @@ impl<'a> OutputProblem<'a> {
 
     /// Initial nonlinear parameters: Bouc-Wen from a grid of static fits, dynamics from a grid
     /// of natural frequencies and damping ratios (on a reduced problem `coarse`), creep at 0.
+    /// The Bouc-Wen parameter slot of each path, if it has one.
+    fn bouc_wen_slots(&self) -> Vec<Option<usize>> {
+        self.paths
+            .iter()
+            .map(|p| match p.kind {
+                PathKind::BoucWen { at, .. } => Some(at),
+                PathKind::Pi {
+                    bw: Some((at, _)), ..
+                } => Some(at),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// This problem's parameters from those of `other` (same chain, other operator): dynamics
+    /// and creep copied, Bouc-Wen parameters copied path by path where both have them.
+    pub fn theta_from_bouc_wen(&self, other: &OutputProblem, th: &[f64]) -> Vec<f64> {
+        let mut t = vec![0.0; self.n_theta];
+        let shared = self.creep_at + self.taus.len();
+        t[..shared].copy_from_slice(&th[..shared]);
+        for (a, b) in self
+            .bouc_wen_slots()
+            .into_iter()
+            .zip(other.bouc_wen_slots())
+        {
+            if let (Some(a), Some(b)) = (a, b) {
+                t[a] = th[b];
+                t[a + 1] = th[b + 1];
+            }
+        }
+        t
+    }
+
     /// Which parameters are not creep gains (the first Levenberg-Marquardt stage holds the
     /// creep gains at zero so that the dynamics settle first).
     pub fn without_creep(&self) -> Vec<bool> {

@@ -5,7 +5,7 @@
 //! `{"format": "hystbench-greybox", "version": 1, "effects": [...], "inputs": [...],
 //! "outputs": [...], "plant": {...}, "fit": {...}}`.
 
-use super::{GreyBoxError, HysteresisOperator};
+use super::{GreyBoxConfig, GreyBoxError, HysteresisOperator};
 use crate::data::IoRecord;
 use crate::effect::EffectName;
 use crate::metrics::Scores;
@@ -87,6 +87,25 @@ pub struct FittedGreyBox {
 }
 
 impl FittedGreyBox {
+    /// The unfitted model this one was fitted from (effects and operator, default options):
+    /// `model.config().with_effect(EffectName::Creep).fit(&rec)` refits with one more effect.
+    pub fn config(&self) -> GreyBoxConfig {
+        let has = |e: EffectName| self.effects.contains(&e);
+        GreyBoxConfig::new(
+            if has(EffectName::Hysteresis) {
+                Some(
+                    self.hysteresis_operator
+                        .unwrap_or(HysteresisOperator::Combined),
+                )
+            } else {
+                None
+            },
+            has(EffectName::Creep),
+            has(EffectName::Dynamics),
+            has(EffectName::Coupling),
+        )
+    }
+
     /// Input names, in model order.
     pub fn inputs(&self) -> &[String] {
         &self.plant.inputs
