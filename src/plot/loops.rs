@@ -170,7 +170,7 @@ impl Figure for LoopFigure<'_> {
             body
         } else {
             let w = body.dim_in_pixel().0;
-            let (main, bar) = body.split_horizontally(w.saturating_sub(150));
+            let (main, bar) = body.split_horizontally(w.saturating_sub(style::px(150)));
             match &cycles {
                 Some(c) => colour_bar(&bar, 0.0, c.last().copied().unwrap_or(0) as f64, "cycle")?,
                 None => colour_bar(
@@ -281,7 +281,7 @@ impl LoopFigure<'_> {
                     .draw_series(chunks.into_iter().flat_map(|(l, pts)| {
                         axes::path_elements(
                             pts,
-                            viridis(l as f64 / top).stroke_width(style::LINE_WIDTH),
+                            viridis(l as f64 / top).stroke_width(style::px(style::LINE_WIDTH)),
                         )
                     }))
                     .map_err(render_err)?
@@ -295,7 +295,7 @@ impl LoopFigure<'_> {
                 chart
                     .draw_series(axes::path_elements(
                         idx.iter().map(|&k| (u[k], y[k])).collect::<Vec<_>>(),
-                        c.stroke_width(style::LINE_WIDTH),
+                        c.stroke_width(style::px(style::LINE_WIDTH)),
                     ))
                     .map_err(render_err)?
                     .label(label)
@@ -318,7 +318,7 @@ impl LoopFigure<'_> {
                 chart
                     .draw_series(axes::path_elements(
                         idx.iter().map(|&k| (u[k], p[k])).collect::<Vec<_>>(),
-                        c.stroke_width(style::LINE_WIDTH),
+                        c.stroke_width(style::px(style::LINE_WIDTH)),
                     ))
                     .map_err(render_err)?
                     .label(label)

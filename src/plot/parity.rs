@@ -108,18 +108,16 @@ impl Figure for ParityFigure<'_> {
                 chart
                     .draw_series(DashedLineSeries::new(
                         vec![(range.0, range.0), (range.1, range.1)],
-                        10,
-                        6,
-                        BLACK.mix(0.7).stroke_width(2),
+                        style::px(10),
+                        style::px(6),
+                        BLACK.mix(0.7).stroke_width(style::px(2)),
                     ))
                     .map_err(render_err)?;
                 let colour = style::series_colour(c);
                 chart
-                    .draw_series(
-                        stride(y.len(), self.max_points)
-                            .into_iter()
-                            .map(|k| Circle::new((y[k], p[k]), 3, colour.mix(0.45).filled())),
-                    )
+                    .draw_series(stride(y.len(), self.max_points).into_iter().map(|k| {
+                        Circle::new((y[k], p[k]), style::px(3), colour.mix(0.45).filled())
+                    }))
                     .map_err(render_err)?;
             }
         }

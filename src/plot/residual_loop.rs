@@ -103,14 +103,14 @@ impl Figure for ResidualLoopFigure<'_> {
                 chart
                     .draw_series(axes::path_elements(
                         vec![(xr.0, 0.0), (xr.1, 0.0)],
-                        BLACK.mix(0.5).stroke_width(1),
+                        BLACK.mix(0.5).stroke_width(style::px(1)),
                     ))
                     .map_err(render_err)?;
                 let idx = decimate(&[u, e], 0..r.len(), 40_000);
                 chart
                     .draw_series(axes::path_elements(
                         idx.iter().map(|&k| (u[k], e[k])).collect::<Vec<_>>(),
-                        style::series_colour(0).stroke_width(style::LINE_WIDTH),
+                        style::series_colour(0).stroke_width(style::px(style::LINE_WIDTH)),
                     ))
                     .map_err(render_err)?;
             }

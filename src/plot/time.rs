@@ -122,7 +122,7 @@ impl Figure for TimeFigure<'_> {
                 chart
                     .draw_series(axes::path_elements(
                         vec![(xr.0, 0.0), (xr.1, 0.0)],
-                        BLACK.mix(0.5).stroke_width(1),
+                        BLACK.mix(0.5).stroke_width(style::px(1)),
                     ))
                     .map_err(render_err)?;
             }
@@ -132,7 +132,7 @@ impl Figure for TimeFigure<'_> {
                 chart
                     .draw_series(axes::path_elements(
                         idx.iter().map(|&k| (t[k], v[k])).collect::<Vec<_>>(),
-                        c.stroke_width(style::LINE_WIDTH),
+                        c.stroke_width(style::px(style::LINE_WIDTH)),
                     ))
                     .map_err(render_err)?
                     .label(name.as_str())
