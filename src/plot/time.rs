@@ -117,7 +117,10 @@ impl Figure for TimeFigure<'_> {
             for (_, v, _) in &series {
                 yr = axes::union(yr, axes::padded_range(*v, 0.05));
             }
-            let mut chart = axes::chart(area, "", xr, yr, &tl, &ylabel)?;
+            // the time axis is described once, under the bottom panel
+            let last = std::ptr::eq(panel, panels.last().unwrap_or(panel));
+            let xl = if last { tl.as_str() } else { "" };
+            let mut chart = axes::chart(area, "", xr, yr, xl, &ylabel)?;
             if matches!(panel, Panel::Residual { .. }) {
                 chart
                     .draw_series(axes::path_elements(
