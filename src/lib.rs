@@ -13,6 +13,11 @@
 
 pub mod cli;
 pub mod data;
+pub mod diagnose;
 pub mod effect;
 pub mod metrics;
+pub mod model;
+pub mod plant;
 pub mod plot;
+pub mod scenario;
+pub mod simulator;

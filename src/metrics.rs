@@ -127,3 +127,102 @@ mod tests {
         assert_eq!(s.rmse, 1.0);
     }
 }
+
+/// Peak-to-peak range of a signal.
+pub fn ptp(x: &[f64]) -> f64 {
+    let (lo, hi) = x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    if lo.is_finite() {
+        hi - lo
+    } else {
+        0.0
+    }
+}
+
+/// Shoelace area of the (u, y) curve over the ordered samples (closed back to the start),
+/// divided by ptp(u) ptp(y): positive for a counter-clockwise loop, about 0 for a memoryless map.
+pub fn normalised_loop_area(u: &[f64], y: &[f64]) -> f64 {
+    let n = u.len().min(y.len());
+    if n < 3 {
+        return 0.0;
+    }
+    let (um, ym) = (mean(u), mean(y));
+    let mut a = 0.0;
+    for k in 0..n {
+        let j = (k + 1) % n;
+        a += (u[k] - um) * (y[j] - ym) - (u[j] - um) * (y[k] - ym);
+    }
+    let b = ptp(&u[..n]) * ptp(&y[..n]);
+    if b > 0.0 {
+        0.5 * a / b
+    } else {
+        0.0
+    }
+}
+
+/// Hysteresis width: over `bins` input bins between the 5th and 95th percentile of u, the mean
+/// output on falling input minus the mean on rising input; the largest |difference| divided by
+/// ptp(y). About 0 for a memoryless map, 0.1-0.2 for a typical piezo loop.
+pub fn branch_gap(u: &[f64], y: &[f64], bins: usize) -> f64 {
+    let n = u.len().min(y.len());
+    if n < 3 || bins == 0 {
+        return 0.0;
+    }
+    let mut sorted: Vec<f64> = u[..n].to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let lo = sorted[n / 20];
+    let hi = sorted[n - 1 - n / 20];
+    if hi <= lo {
+        return 0.0;
+    }
+    let mut rise = vec![(0.0, 0usize); bins];
+    let mut fall = vec![(0.0, 0usize); bins];
+    for k in 1..n {
+        let du = u[k] - u[k - 1];
+        if du == 0.0 || u[k] < lo || u[k] > hi {
+            continue;
+        }
+        let b = (((u[k] - lo) / (hi - lo)) * bins as f64).min(bins as f64 - 1.0) as usize;
+        let slot = if du > 0.0 { &mut rise[b] } else { &mut fall[b] };
+        slot.0 += y[k];
+        slot.1 += 1;
+    }
+    let range = ptp(&y[..n]);
+    let gap = rise
+        .iter()
+        .zip(&fall)
+        .filter(|(r, f)| r.1 > 0 && f.1 > 0)
+        .map(|(r, f)| (f.0 / f.1 as f64 - r.0 / r.1 as f64).abs())
+        .fold(0.0, f64::max);
+    if range > 0.0 {
+        gap / range
+    } else {
+        0.0
+    }
+}
+
+#[cfg(test)]
+mod loop_tests {
+    use super::*;
+
+    #[test]
+    fn memoryless_map_has_no_loop() {
+        let u: Vec<f64> = (0..3000)
+            .map(|k| (k as f64 * std::f64::consts::TAU / 1000.0).sin())
+            .collect();
+        let y: Vec<f64> = u.iter().map(|v| 2.0 * v + v * v * v).collect();
+        assert!(normalised_loop_area(&u, &y).abs() < 1e-3);
+        assert!(branch_gap(&u, &y, 20) < 0.01);
+    }
+
+    #[test]
+    fn lagging_output_has_counter_clockwise_loop() {
+        let u: Vec<f64> = (0..6284).map(|k| (k as f64 * 0.001).sin()).collect();
+        let y: Vec<f64> = (0..6284).map(|k| (k as f64 * 0.001 - 0.3).sin()).collect();
+        assert!(normalised_loop_area(&u, &y) > 0.1);
+        assert!(branch_gap(&u, &y, 20) > 0.2);
+    }
+}

@@ -5,7 +5,11 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod compare;
+pub mod demo;
+pub mod diagnose;
 pub mod plot;
+pub mod simulate;
 
 /// Simulate, identify, plot and improve models of hysteretic actuators.
 #[derive(Debug, Parser)]
@@ -20,12 +24,24 @@ pub struct Cli {
 pub enum Command {
     /// Draw a figure (PNG or SVG): loop, time, residual-loop, parity, spectrum, sweep, ladder.
     Plot(plot::PlotArgs),
+    /// Compare a model with a record: scores and where it fails.
+    Compare(compare::Args),
+    /// Which physical effect does the model miss?
+    Diagnose(diagnose::Args),
+    /// The main job on built-in defaults: simulate the shipped plants and report.
+    Demo(demo::Args),
+    /// Simulate a plant on a scenario or a recorded input and write a record.
+    Simulate(simulate::Args),
 }
 
 /// Run one parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Plot(args) => plot::run(args),
+        Command::Compare(a) => compare::run(a),
+        Command::Demo(a) => demo::run(a),
+        Command::Diagnose(a) => diagnose::run(a),
+        Command::Simulate(a) => simulate::run(a),
     }
 }
 

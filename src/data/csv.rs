@@ -131,12 +131,17 @@ impl Record {
         Ok(&self.columns[self.index(name)?])
     }
 
-    /// The time column: `t`, else the first column whose name starts with `t_` (as `t_s`).
+    /// The time column: `t` or `time`, else the first column whose name starts with `t_` or
+    /// `time_` (as `t_s`, `time_s`).
     pub fn time_column(&self) -> Option<&str> {
         self.names
             .iter()
-            .find(|n| n.as_str() == "t")
-            .or_else(|| self.names.iter().find(|n| n.starts_with("t_")))
+            .find(|n| n.as_str() == "t" || n.as_str() == "time")
+            .or_else(|| {
+                self.names
+                    .iter()
+                    .find(|n| n.starts_with("t_") || n.starts_with("time_"))
+            })
             .map(String::as_str)
     }
 

@@ -48,7 +48,7 @@ pub enum DataError {
         name: String,
         available: String,
     },
-    #[error("{path}: {what}; the columns are: {available}. Name them with --inputs/--outputs (or --input-columns)")]
+    #[error("{path}: {what}; the columns are: {available}")]
     NoDefaultColumns {
         path: PathBuf,
         what: String,

@@ -68,7 +68,7 @@ impl IoRecord {
             if names.is_empty() && required {
                 return Err(DataError::NoDefaultColumns {
                     path: rec.path.clone(),
-                    what: format!("no {what} column named `{prefix}` or `{prefix}1`, `{prefix}2`…"),
+                    what: format!("no {what} column named `{prefix}` or `{prefix}1`, `{prefix}2`…; name the columns with --{what}s"),
                     available: rec.names.join(", "),
                 });
             }
@@ -84,11 +84,22 @@ impl IoRecord {
         };
         let inputs = pick(inputs, "u", "input", true)?;
         let outputs = pick(outputs, "y", "output", outputs_required)?;
-        let ts = rec.sampling_period()?.unwrap_or(1.0);
-        let (time_name, t0) = match rec.time_column() {
-            Some(n) => (n.to_string(), rec.column(n)?[0]),
-            None => ("t".to_string(), 0.0),
-        };
+        let time_name = rec
+            .time_column()
+            .ok_or_else(|| DataError::NoDefaultColumns {
+                path: rec.path.clone(),
+                what: "no time column (`t`, `time`, `t_s`, `time_s`…); add the time in seconds"
+                    .into(),
+                available: rec.names.join(", "),
+            })?;
+        let ts = rec.sampling_period()?.ok_or_else(|| DataError::TooShort {
+            path: rec.path.clone(),
+            rows: rec.len(),
+            needed: 2,
+            why: "a sampling period needs two time stamps".into(),
+        })?;
+        let t0 = rec.column(time_name)?[0];
+        let time_name = time_name.to_string();
         Ok(IoRecord {
             path: rec.path.clone(),
             ts,

@@ -107,12 +107,13 @@ impl BoucWen {
         self.a / (self.b + self.gamma)
     }
 
-    /// The operator at its initial state. The first sample sets the input origin.
+    /// The operator at rest: input 0 and h = initial_h (the first sample is reached along a
+    /// straight path from 0).
     pub fn operator(&self) -> BoucWenOp {
         BoucWenOp {
             p: *self,
             h: self.initial_h,
-            u_prev: None,
+            u_prev: 0.0,
         }
     }
 }
@@ -122,7 +123,7 @@ impl BoucWen {
 pub struct BoucWenOp {
     p: BoucWen,
     h: f64,
-    u_prev: Option<f64>,
+    u_prev: f64,
 }
 
 /// Exact update of h over an input path of length `v` in direction `s` (n = 1).
@@ -185,23 +186,21 @@ impl BoucWen {
 impl Operator for BoucWenOp {
     fn reset(&mut self) {
         self.h = self.p.initial_h;
-        self.u_prev = None;
+        self.u_prev = 0.0;
     }
 
     #[inline]
     fn step(&mut self, u: f64) -> f64 {
-        if let Some(u0) = self.u_prev {
-            let du = u - u0;
-            if du != 0.0 {
-                let s = du.signum();
-                self.h = if self.p.n == 1.0 {
-                    bouc_wen_exact(self.h, du.abs(), s, self.p.a, self.p.b, self.p.gamma)
-                } else {
-                    bouc_wen_rk4(self.h, du.abs(), s, &self.p)
-                };
-            }
+        let du = u - self.u_prev;
+        if du != 0.0 {
+            let s = du.signum();
+            self.h = if self.p.n == 1.0 {
+                bouc_wen_exact(self.h, du.abs(), s, self.p.a, self.p.b, self.p.gamma)
+            } else {
+                bouc_wen_rk4(self.h, du.abs(), s, &self.p)
+            };
         }
-        self.u_prev = Some(u);
+        self.u_prev = u;
         self.p.d * u - self.h
     }
 }
@@ -226,8 +225,9 @@ mod tests {
     /// Fine explicit integration of dh/du for comparison.
     fn euler(p: &BoucWen, u: &[f64], sub: usize) -> Vec<f64> {
         let mut h: f64 = 0.0;
-        let mut out = vec![p.d * u[0]];
-        for w in u.windows(2) {
+        let mut out = Vec::new();
+        let path: Vec<f64> = std::iter::once(0.0).chain(u.iter().copied()).collect();
+        for w in path.windows(2) {
             let du = (w[1] - w[0]) / sub as f64;
             for _ in 0..sub {
                 h += p.a * du

@@ -170,6 +170,36 @@ impl Operator for CreepOp {
     }
 }
 
+/// One Kelvin-Voigt state (a first-order lag of time constant `tau`, exact under a zero-order
+/// hold, starting at the first sample's value).
+pub fn kelvin_voigt_state(x: &[f64], tau: f64, ts: f64) -> Vec<f64> {
+    let a = (-ts / tau).exp();
+    let mut z = x.first().copied().unwrap_or(0.0);
+    x.iter()
+        .map(|&v| {
+            let out = z;
+            z = a * z + (1.0 - a) * v;
+            out
+        })
+        .collect()
+}
+
+/// Basis bank: slow first-order states of the model's prediction, time constants one per half
+/// decade from 20 samples (at least 0.05 s) up to a third of the record.
+pub fn basis(ctx: &super::basis::BasisContext) -> super::basis::BasisBank {
+    let mut bank = super::basis::BasisBank::new(super::EffectName::Creep);
+    let span = ctx.len() as f64 * ctx.ts;
+    let mut tau = (20.0 * ctx.ts).max(0.05);
+    while tau <= span / 3.0 {
+        bank.push(
+            format!("creep state(tau={tau:.3} s)"),
+            kelvin_voigt_state(ctx.prediction, tau, ctx.ts),
+        );
+        tau *= 10f64.sqrt();
+    }
+    bank
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

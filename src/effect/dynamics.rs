@@ -150,6 +150,47 @@ impl Operator for DynamicsOp {
     }
 }
 
+/// Basis bank: the model's prediction passed through lightly damped second-order resonators
+/// (natural frequencies log-spaced by 1.3 from max(1 Hz, 50 / record span) to 0.35 / Ts,
+/// damping 0.1; each with its one-sample delay, which spans the filter's two states), and a few
+/// short delays of the prediction (first-order lags, delays): a missing mode or lag acting on
+/// the prediction is a combination of them.
+pub fn basis(ctx: &super::basis::BasisContext) -> super::basis::BasisBank {
+    let mut bank = super::basis::BasisBank::new(super::EffectName::Dynamics);
+    let y = ctx.prediction;
+    let n = y.len();
+    for lag in [1usize, 2, 3, 5] {
+        if lag >= n {
+            break;
+        }
+        bank.push(
+            format!("prediction(k-{lag})"),
+            (0..n).map(|k| y[k.saturating_sub(lag)]).collect(),
+        );
+    }
+    let span = n as f64 * ctx.ts;
+    let mut f = (50.0 / span).max(1.0);
+    let f_max = 0.35 / ctx.ts;
+    // start the filters at the first value so that a non-zero start does not ring
+    let y0 = y.first().copied().unwrap_or(0.0);
+    let shifted: Vec<f64> = y.iter().map(|v| v - y0).collect();
+    while f <= f_max {
+        let d = Dynamics {
+            natural_frequency_hz: f,
+            damping_ratio: 0.1,
+            dc_gain: 1.0,
+        };
+        if let Ok(mut op) = d.operator(ctx.ts) {
+            let x = op.apply(&shifted);
+            let x1: Vec<f64> = (0..n).map(|k| x[k.saturating_sub(1)]).collect();
+            bank.push(format!("resonator({f:.2} Hz)"), x);
+            bank.push(format!("resonator({f:.2} Hz)(k-1)"), x1);
+        }
+        f *= 1.3;
+    }
+    bank
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

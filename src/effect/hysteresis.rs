@@ -99,3 +99,14 @@ impl Operator for HysteresisOp {
         }
     }
 }
+
+/// Basis bank: plays of the direct input at thresholds spread over its half range.
+pub fn basis(ctx: &super::basis::BasisContext) -> super::basis::BasisBank {
+    let u = ctx.inputs[ctx.direct];
+    let mut bank = super::basis::BasisBank::new(super::EffectName::Hysteresis);
+    let th = super::basis::play_thresholds(u, 8);
+    for (r, z) in th.iter().zip(super::play::play_bank(u, &th)) {
+        bank.push(format!("play(u, r={r:.3})"), z);
+    }
+    bank
+}

@@ -21,7 +21,9 @@
 //! - D. Croft, G. Shedd, S. Devasia, "Creep, hysteresis, and vibration compensation for
 //!   piezoactuators", ASME J. Dyn. Syst. Meas. Control 123(1):35-43, 2001.
 
+pub mod basis;
 pub mod bouc_wen;
+pub mod coupling;
 pub mod creep;
 pub mod dynamics;
 mod error;

@@ -1,0 +1,127 @@
+//! `hystbench compare`: a model against a record: scores and where it fails.
+
+use crate::data::{read_csv, IoRecord};
+use crate::diagnose::compare::{compare, OutputComparison};
+use crate::diagnose::unit_of;
+use crate::model::{load_model, Model};
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+/// Compare a model (plant, grey-box or NARX file) with a measured record.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The record (CSV with the model's input and output columns).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// The model file.
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Write a Markdown report (and the prediction CSV) into this folder.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Overwrite an existing report.
+    #[arg(long)]
+    pub force: bool,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Load, select and predict: the common start of compare, diagnose and improve.
+pub fn predict_record(
+    data: &std::path::Path,
+    model: &dyn Model,
+) -> anyhow::Result<(IoRecord, Vec<Vec<f64>>)> {
+    let rec = read_csv(data)?;
+    let io = model.select(&rec)?;
+    let pred = model.predict(&io)?;
+    for (p, name) in pred.iter().zip(io.output_names()) {
+        if let Some(k) = p.iter().position(|v| !v.is_finite()) {
+            anyhow::bail!(
+                "{}: the prediction of `{name}` diverged at sample {k}",
+                model.describe()
+            );
+        }
+    }
+    Ok((io, pred))
+}
+
+/// The comparison as Markdown.
+pub fn markdown(model: &dyn Model, data: &std::path::Path, cmp: &[OutputComparison]) -> String {
+    let mut s = format!("# {} against {}\n\n", model.describe(), data.display());
+    for c in cmp {
+        let u = unit_of(&c.output);
+        let sc = &c.scores;
+        let _ = writeln!(s, "## {}\n", c.output);
+        let _ = writeln!(
+            s,
+            "R^2 {} | RMSE {:.4} {u} | NRMSE {} | fit {} % | max error {:.4} {u} | {} samples\n",
+            sc.r2.map_or("undefined".into(), |v| format!("{v:.5}")),
+            sc.rmse,
+            sc.nrmse.map_or("undefined".into(), |v| format!("{v:.4}")),
+            sc.fit_percent
+                .map_or("undefined".into(), |v| format!("{v:.2}")),
+            sc.max_error,
+            sc.n
+        );
+        let _ = writeln!(
+            s,
+            "Residual-against-{} loop area: {:.4} (0 for a model with the right memory).\n",
+            c.input, c.residual_loop_area
+        );
+        let _ = writeln!(s, "| where | samples | RMS error [{u}] |\n|---|---|---|");
+        for sl in c
+            .by_direction
+            .iter()
+            .chain(&c.by_amplitude)
+            .chain(&c.by_motion)
+        {
+            if sl.samples > 0 {
+                let _ = writeln!(s, "| {} | {} | {:.4} |", sl.label, sl.samples, sl.rms);
+            }
+        }
+        let _ = writeln!(s, "\n| frequency band | RMS error [{u}] |\n|---|---|");
+        for sl in &c.by_frequency {
+            let _ = writeln!(s, "| {} | {:.4} |", sl.label, sl.rms);
+        }
+        let _ = writeln!(s, "\nWorst windows:\n");
+        for w in &c.worst_windows {
+            let _ = writeln!(
+                s,
+                "- {:.3} s to {:.3} s: RMS {:.4} {u}",
+                w.start_s, w.end_s, w.rms
+            );
+        }
+        s.push('\n');
+    }
+    s
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let model = load_model(&a.model)?;
+    if let Some(dir) = &a.report {
+        crate::cli::demo::prepare_report_folder(dir, a.force)?;
+    }
+    let (io, pred) = predict_record(&a.data, model.as_ref())?;
+    let cmp = compare(&io, &pred);
+    let md = markdown(model.as_ref(), &a.data, &cmp);
+    if let Some(dir) = &a.report {
+        crate::data::write_atomic(&dir.join("report.md"), md.as_bytes(), true)?;
+        let (mut names, mut cols) = io.to_columns();
+        for (s, p) in io.outputs.iter().zip(&pred) {
+            names.push(format!("{}_hat", s.name));
+            cols.push(p.clone());
+        }
+        crate::data::write_csv_atomic(&dir.join("prediction.csv"), &names, &cols, true)?;
+        eprintln!("report: {}", dir.join("report.md").display());
+    }
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string(&serde_json::json!({ "outputs": cmp }))?
+        );
+    } else {
+        println!("{md}");
+    }
+    Ok(())
+}

@@ -1,0 +1,72 @@
+//! `hystbench diagnose`: which physical effect does the model miss?
+
+use crate::cli::compare::predict_record;
+use crate::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
+use crate::model::load_model;
+use std::path::PathBuf;
+
+/// Rank the effects a model lacks by how much of its residual each explains, out of sample.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The record (CSV with the model's input and output columns).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// The model file (plant, grey-box or NARX).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Print one JSON object: {"ranking": [{"effect", "explained", ...}], "missing": ..., ...}.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The diagnosis in words.
+pub fn text(d: &Diagnosis) -> String {
+    let mut s = String::new();
+    for od in &d.outputs {
+        s += &format!("output {} (RMS error {:.4}):\n", od.output, od.rms);
+        for m in &od.messages {
+            s += &format!("  - {m}\n");
+        }
+        let sig: Vec<&str> = od
+            .whiteness
+            .tests
+            .iter()
+            .filter(|t| t.significant)
+            .map(|t| t.name.as_str())
+            .collect();
+        s += &if sig.is_empty() {
+            "  residual: white and uncorrelated with the inputs\n".to_string()
+        } else {
+            format!("  residual correlation tests failed: {}\n", sig.join(", "))
+        };
+    }
+    s += "ranking (share of the residual explained out of sample):\n";
+    for r in &d.ranking {
+        s += &format!(
+            "  {:<11} {:>6.1} %\n",
+            r.effect.as_str(),
+            100.0 * r.explained.max(0.0)
+        );
+    }
+    s += &format!(
+        "missing: {}\n",
+        d.missing
+            .map_or("nothing significant".to_string(), |m| m.to_string())
+    );
+    for line in &d.summary {
+        s += &format!("{line}\n");
+    }
+    s
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let model = load_model(&a.model)?;
+    let (io, pred) = predict_record(&a.data, model.as_ref())?;
+    let d = diagnose(&io, &pred, &model.effects(), &DiagnoseOptions::default());
+    if a.json {
+        println!("{}", serde_json::to_string(&d)?);
+    } else {
+        print!("{}", text(&d));
+    }
+    Ok(())
+}

@@ -1,0 +1,344 @@
+//! # Diagnosis: which physical effect is the model missing?
+//!
+//! Given a record and a model's prediction of it, every effect of the library offers a bank of
+//! basis signals ([`crate::effect::basis`]). For each output, the residual e = y - y_hat is
+//! regressed on each bank on top of a baseline (the prediction and a constant, so that a gain or
+//! offset error is not mistaken for physics), with two-fold contiguous cross-validation: the bank
+//! that explains most of the residual out of sample names the missing effect. The residual is
+//! also tested for whiteness (auto-, cross- and higher-order correlations), so that "nothing
+//! significant is missing" is a possible answer.
+//!
+//! Decision rule: the top effect the model lacks is called missing when the residual is not
+//! white, its bank explains at least [`DiagnoseOptions::threshold`] of the residual out of sample,
+//! and it explains clearly more (by [`DiagnoseOptions::margin`]) than the banks of the effects the
+//! model already has (those would mean a misfit of present effects, not a missing one).
+//!
+//! ## References
+//! - S. A. Billings, W. S. F. Voon, Int. J. Control 44(1):235-244, 1986.
+//! - S. A. Billings, S. Chen, M. J. Korenberg, Int. J. Control 49(6):2157-2189, 1989.
+//! - PHYSICS.md section 6 (diagnostic signatures of missing effects).
+
+pub mod compare;
+pub mod regression;
+pub mod whiteness;
+
+use crate::data::IoRecord;
+use crate::effect::basis::{basis_bank, BasisContext};
+use crate::effect::EffectName;
+use crate::metrics::{branch_gap, rms};
+use serde::Serialize;
+pub use whiteness::{whiteness, Whiteness};
+
+/// Knobs of the decision rule.
+#[derive(Debug, Clone, Copy)]
+pub struct DiagnoseOptions {
+    /// Share of the residual a bank must explain out of sample to call its effect missing.
+    pub threshold: f64,
+    /// How much more than the present effects' banks it must explain.
+    pub margin: f64,
+    /// Lags of the correlation tests.
+    pub max_lag: usize,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        DiagnoseOptions {
+            threshold: 0.5,
+            margin: 0.15,
+            max_lag: 30,
+        }
+    }
+}
+
+/// How much of one output's residual an effect's bank explains.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EffectScore {
+    pub effect: EffectName,
+    /// Out-of-sample share of the residual explained (on top of the baseline).
+    pub explained: f64,
+    /// Held-out RMS error now (after the baseline) and with the effect's bank.
+    pub rms_now: f64,
+    pub rms_after: f64,
+    /// The model already has this effect.
+    pub in_model: bool,
+}
+
+/// Diagnosis of one output.
+#[derive(Debug, Clone, Serialize)]
+pub struct OutputDiagnosis {
+    pub output: String,
+    pub rms: f64,
+    pub scores: Vec<EffectScore>,
+    pub whiteness: Whiteness,
+    pub missing: Option<EffectName>,
+    pub messages: Vec<String>,
+}
+
+/// One line of the ranking over all outputs.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Rank {
+    pub effect: EffectName,
+    /// Pooled over outputs: 1 - sum SSE(with bank) / sum SSE(baseline).
+    pub explained: f64,
+    pub rms_now: f64,
+    pub rms_after: f64,
+}
+
+/// The whole diagnosis.
+#[derive(Debug, Clone, Serialize)]
+pub struct Diagnosis {
+    /// Effects the model lacks, most explanatory first.
+    pub ranking: Vec<Rank>,
+    /// The effect to add, or `None` when nothing significant is missing.
+    pub missing: Option<EffectName>,
+    pub outputs: Vec<OutputDiagnosis>,
+    /// What to do, in words.
+    pub summary: Vec<String>,
+}
+
+/// Unit of a column from its name suffix (`displacement_um` -> `um`), or "".
+pub fn unit_of(name: &str) -> String {
+    match name.rsplit_once('_') {
+        Some((_, u))
+            if !u.is_empty() && u.len() <= 6 && u.chars().all(|c| c.is_ascii_alphanumeric()) =>
+        {
+            u.to_string()
+        }
+        _ => String::new(),
+    }
+}
+
+/// Diagnose `predictions` (one per output of `rec`) of a model that has `model_effects`.
+pub fn diagnose(
+    rec: &IoRecord,
+    predictions: &[Vec<f64>],
+    model_effects: &[EffectName],
+    opts: &DiagnoseOptions,
+) -> Diagnosis {
+    let inputs: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
+    let named: Vec<(&str, &[f64])> = rec
+        .inputs
+        .iter()
+        .map(|s| (s.name.as_str(), s.values.as_slice()))
+        .collect();
+    let mut outputs = Vec::new();
+    for (o, (y, yhat)) in rec.outputs.iter().zip(predictions).enumerate() {
+        let e: Vec<f64> = y.values.iter().zip(yhat).map(|(a, b)| a - b).collect();
+        let direct = o.min(inputs.len() - 1);
+        let ctx = BasisContext {
+            inputs: &inputs,
+            direct,
+            prediction: yhat,
+            ts: rec.ts,
+        };
+        let mut scores = Vec::new();
+        for effect in EffectName::ALL {
+            let Some(bank) = basis_bank(effect, &ctx) else {
+                continue;
+            };
+            if bank.signals.is_empty() {
+                continue;
+            }
+            let cols: Vec<&[f64]> = bank.signals.iter().map(Vec::as_slice).collect();
+            if let Some(x) = regression::explained_out_of_sample(&e, &[yhat], &cols) {
+                scores.push(EffectScore {
+                    effect,
+                    explained: x.fraction,
+                    rms_now: x.rms_baseline,
+                    rms_after: x.rms_with_bank,
+                    in_model: model_effects.contains(&effect),
+                });
+            }
+        }
+        scores.sort_by(|a, b| b.explained.total_cmp(&a.explained));
+        let w = whiteness(&e, &named, opts.max_lag);
+        let present_best = scores
+            .iter()
+            .filter(|s| s.in_model)
+            .map(|s| s.explained)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let top = scores.iter().find(|s| !s.in_model);
+        let missing = top
+            .filter(|s| {
+                !w.white
+                    && s.explained >= opts.threshold
+                    && s.explained >= present_best + opts.margin
+            })
+            .map(|s| s.effect);
+        let unit = unit_of(&y.name);
+        let mut messages = Vec::new();
+        for s in scores.iter().filter(|s| !s.in_model) {
+            messages.push(describe(rec, o, direct, &e, s, &unit));
+        }
+        outputs.push(OutputDiagnosis {
+            output: y.name.clone(),
+            rms: rms(&e),
+            scores,
+            whiteness: w,
+            missing,
+            messages,
+        });
+    }
+    // pool over outputs
+    let mut ranking = Vec::new();
+    for effect in EffectName::ALL {
+        if model_effects.contains(&effect) {
+            continue;
+        }
+        let (mut now, mut after, mut n) = (0.0, 0.0, 0usize);
+        for od in &outputs {
+            if let Some(s) = od.scores.iter().find(|s| s.effect == effect) {
+                now += s.rms_now * s.rms_now;
+                after += s.rms_after * s.rms_after;
+                n += 1;
+            }
+        }
+        if n > 0 && now > 0.0 {
+            ranking.push(Rank {
+                effect,
+                explained: 1.0 - after / now,
+                rms_now: (now / n as f64).sqrt(),
+                rms_after: (after / n as f64).sqrt(),
+            });
+        }
+    }
+    ranking.sort_by(|a, b| b.explained.total_cmp(&a.explained));
+    // the missing effect overall: the one called missing on the outputs where it explains most
+    let missing = ranking
+        .iter()
+        .map(|r| r.effect)
+        .find(|e| outputs.iter().any(|od| od.missing == Some(*e)));
+    let mut summary = Vec::new();
+    match missing {
+        Some(m) => {
+            for od in &outputs {
+                if let Some(i) = od.scores.iter().position(|s| s.effect == m) {
+                    let _ = i;
+                    if let Some(msg) = od.messages.iter().find(|t| t.starts_with(m.as_str())) {
+                        summary.push(format!("{}: {msg}", od.output));
+                    }
+                }
+            }
+            summary.push(format!(
+                "add it: hystbench fit --effects <the model's effects>,{m}"
+            ));
+        }
+        None => {
+            let white = outputs.iter().all(|o| o.whiteness.white);
+            summary.push(if white {
+                "nothing significant is missing: the residual is white and uncorrelated with the inputs".to_string()
+            } else {
+                "nothing significant is missing from the library's effects: no effect the model lacks explains enough of the residual (what is left is noise or a misfit of the effects it has)".to_string()
+            });
+        }
+    }
+    Diagnosis {
+        ranking,
+        missing,
+        outputs,
+        summary,
+    }
+}
+
+/// One sentence about what an effect would change, with its evidence.
+fn describe(
+    rec: &IoRecord,
+    o: usize,
+    direct: usize,
+    e: &[f64],
+    s: &EffectScore,
+    unit: &str,
+) -> String {
+    let u = &rec.inputs[direct].values;
+    let change = format!(
+        "adding {} should bring the RMS error from {:.3} to about {:.3} {unit} ({:.0} % of the residual explained out of sample)",
+        s.effect,
+        s.rms_now,
+        s.rms_after,
+        100.0 * s.explained.max(0.0)
+    );
+    let evidence = match s.effect {
+        EffectName::Hysteresis => format!(
+            "the error forms a loop against {} (branch gap {:.1} % of the error's range)",
+            rec.inputs[direct].name,
+            100.0 * branch_gap(u, e, 20)
+        ),
+        EffectName::Creep => match creep_drift(u, e, rec.ts) {
+            Some((slope, holds)) => format!(
+                "after each step the error drifts by {:.3} {unit} per decade of time ({holds} holds)",
+                slope.abs()
+            ),
+            None => "the error follows slow first-order trends of the output (no holds in the record to measure the drift per decade)".to_string(),
+        },
+        EffectName::Dynamics => "the error follows the recent past of the output: a fast linear dynamics (a mode, a lag) is not in the model".to_string(),
+        EffectName::Coupling => {
+            let best = rec
+                .inputs
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != direct)
+                .map(|(_, s)| (s.name.clone(), correlation(&s.values, e).abs()))
+                .fold((String::new(), 0.0), |m, x| if x.1 > m.1 { x } else { m });
+            format!("the error of {} follows {} (correlation {:.2})", rec.outputs[o].name, best.0, best.1)
+        }
+    };
+    format!("{}: {evidence}; {change}", s.effect)
+}
+
+fn correlation(a: &[f64], b: &[f64]) -> f64 {
+    let (ma, mb) = (crate::metrics::mean(a), crate::metrics::mean(b));
+    let (mut s, mut sa, mut sb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        s += (x - ma) * (y - mb);
+        sa += (x - ma) * (x - ma);
+        sb += (y - mb) * (y - mb);
+    }
+    if sa > 0.0 && sb > 0.0 {
+        s / (sa * sb).sqrt()
+    } else {
+        0.0
+    }
+}
+
+/// Holds of the input: (start, end) index ranges where it stays within 0.1 % of its range for
+/// at least 0.5 s and 50 samples.
+pub fn holds(u: &[f64], ts: f64) -> Vec<(usize, usize)> {
+    let tol = 1e-3 * crate::metrics::ptp(u).max(f64::MIN_POSITIVE);
+    let min_len = ((0.5 / ts) as usize).max(50);
+    let mut out = Vec::new();
+    let mut start = 0;
+    for k in 1..=u.len() {
+        if k == u.len() || (u[k] - u[start]).abs() > tol {
+            if k - start >= min_len {
+                out.push((start, k));
+            }
+            start = k;
+        }
+    }
+    out
+}
+
+/// Mean slope of the error against log10(time since the step) over the holds, and their count.
+pub fn creep_drift(u: &[f64], e: &[f64], ts: f64) -> Option<(f64, usize)> {
+    let hs = holds(u, ts);
+    let mut slopes = Vec::new();
+    for &(a, b) in &hs {
+        // skip the first 5 % (dynamics settling) and 10 samples at least
+        let skip = ((b - a) / 20).max(10);
+        let (x, y): (Vec<f64>, Vec<f64>) = (a + skip..b)
+            .map(|k| (((k - a) as f64 * ts).log10(), e[k]))
+            .unzip();
+        if x.len() < 10 {
+            continue;
+        }
+        let c = regression::fit(&[&x], &y, 0..x.len(), true)?;
+        slopes.push(c[0]);
+    }
+    if slopes.is_empty() {
+        return None;
+    }
+    Some((
+        slopes.iter().map(|s| s.abs()).sum::<f64>() / slopes.len() as f64,
+        slopes.len(),
+    ))
+}

@@ -1,0 +1,132 @@
+//! # Models
+//!
+//! Anything that predicts a record's outputs from its inputs: a plant file used as a model, a
+//! fitted grey-box model, a NARX network. `compare`, `diagnose` and `improve` take any of them
+//! through the [`Model`] trait; [`load_model`] reads a file and picks the kind from its `format`.
+
+use crate::data::{DataError, IoRecord, Record};
+use crate::effect::hysteresis::Hysteresis;
+use crate::effect::EffectName;
+use crate::plant::{Plant, PlantError, PlantKind, PlantSpec};
+use std::path::{Path, PathBuf};
+
+/// What can go wrong when loading or running a model.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ModelError {
+    #[error("{path}: cannot read: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: not a model file: {message}")]
+    Json { path: PathBuf, message: String },
+    #[error("{path}: unknown model format `{found}`; known: {known}")]
+    UnknownFormat {
+        path: PathBuf,
+        found: String,
+        known: String,
+    },
+    #[error(transparent)]
+    Plant(#[from] PlantError),
+    #[error(transparent)]
+    Data(#[from] DataError),
+    #[error("{0}")]
+    Other(String),
+}
+
+/// A model that predicts outputs from inputs (free run: only the inputs are used).
+pub trait Model {
+    /// A short description (kind and file).
+    fn describe(&self) -> String;
+    /// The input columns it needs, in order.
+    fn input_names(&self) -> Vec<String>;
+    /// The output columns it predicts, in order.
+    fn output_names(&self) -> Vec<String>;
+    /// The library effects it contains.
+    fn effects(&self) -> Vec<EffectName>;
+    /// Free-run prediction of every output for the inputs of `rec`.
+    fn predict(&self, rec: &IoRecord) -> Result<Vec<Vec<f64>>, ModelError>;
+
+    /// Select this model's inputs and outputs from a record (clear error if they are not there).
+    fn select(&self, rec: &Record) -> Result<IoRecord, ModelError> {
+        Ok(IoRecord::from_record(
+            rec,
+            Some(&self.input_names()),
+            Some(&self.output_names()),
+            true,
+        )?)
+    }
+}
+
+/// The library effects a plant contains.
+pub fn plant_effects(plant: &Plant) -> Vec<EffectName> {
+    let mut out = Vec::new();
+    if let PlantKind::Chain(chains) = &plant.kind {
+        let mut add = |e| {
+            if !out.contains(&e) {
+                out.push(e)
+            }
+        };
+        for (o, c) in chains.iter().enumerate() {
+            for p in &c.paths {
+                if !matches!(p.hysteresis, Hysteresis::Linear(_)) {
+                    add(EffectName::Hysteresis);
+                }
+                if p.input != o.min(plant.inputs.len() - 1) {
+                    add(EffectName::Coupling);
+                }
+                if p.dynamics.is_some() {
+                    add(EffectName::Dynamics);
+                }
+            }
+            if c.creep.is_some() {
+                add(EffectName::Creep);
+            }
+            if c.dynamics.is_some() {
+                add(EffectName::Dynamics);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+impl Model for Plant {
+    fn describe(&self) -> String {
+        format!("plant `{}` ({})", self.name, self.path.display())
+    }
+    fn input_names(&self) -> Vec<String> {
+        self.inputs.clone()
+    }
+    fn output_names(&self) -> Vec<String> {
+        self.outputs.clone()
+    }
+    fn effects(&self) -> Vec<EffectName> {
+        plant_effects(self)
+    }
+    fn predict(&self, rec: &IoRecord) -> Result<Vec<Vec<f64>>, ModelError> {
+        let u: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
+        Ok(self.simulate(&u, rec.ts)?)
+    }
+}
+
+/// Read a model file: a plant file, or a model file with a `format` field.
+pub fn load_model(path: &Path) -> Result<Box<dyn Model>, ModelError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ModelError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| ModelError::Json {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    match v.get("format").and_then(|f| f.as_str()) {
+        None => Ok(Box::new(PlantSpec::parse(path, &text)?.check(path)?)),
+        Some(other) => Err(ModelError::UnknownFormat {
+            path: path.to_path_buf(),
+            found: other.to_string(),
+            known: "a plant file (no `format`)".into(),
+        }),
+    }
+}

@@ -1,0 +1,46 @@
+use crate::effect::EffectError;
+use std::path::PathBuf;
+
+/// What can be wrong with a plant file or a simulation.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlantError {
+    #[error("{path}: cannot read: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: line {line}, column {column}: {message}")]
+    Json {
+        path: PathBuf,
+        line: usize,
+        column: usize,
+        message: String,
+    },
+    #[error("{path}: {field}: {source}")]
+    Effect {
+        path: PathBuf,
+        field: String,
+        source: EffectError,
+    },
+    #[error("{path}: `{field}`: {rule}")]
+    Structure {
+        path: PathBuf,
+        field: String,
+        rule: String,
+    },
+    #[error("the plant has {expected} inputs ({names}) but {found} input signals were given")]
+    InputCount {
+        expected: usize,
+        found: usize,
+        names: String,
+    },
+    #[error("simulation of output `{output}` left the finite range at sample {sample} (value {value}); check the parameters and the input amplitude")]
+    Diverged {
+        output: String,
+        sample: usize,
+        value: f64,
+    },
+    #[error("ODE plant: {0}")]
+    Ode(String),
+}

@@ -1,0 +1,211 @@
+//! The diagnosis names the missing effect: for each effect E, a record from a plant with E and a
+//! model without E (here: the true plant with E removed; the grey-box tests refit instead);
+//! with the complete model nothing is missing, at two noise levels.
+
+use hystbench::data::IoRecord;
+use hystbench::diagnose::{diagnose, DiagnoseOptions};
+use hystbench::effect::EffectName;
+use hystbench::plant::{Plant, PlantSpec};
+use hystbench::scenario::ScenarioSpec;
+use hystbench::simulator::simulate_scenario;
+use std::path::Path;
+
+fn plant(json: &str) -> PlantSpec {
+    PlantSpec::parse(Path::new("test-plant.json"), json).unwrap()
+}
+
+fn record(p: &PlantSpec, scenario: &str, noise: f64) -> IoRecord {
+    let mut s = ScenarioSpec::parse(Path::new("test-scenario.json"), scenario).unwrap();
+    s.noise_std = hystbench::scenario::NoiseLevel::All(noise);
+    let sc = s.check(Path::new("test-scenario.json")).unwrap();
+    simulate_scenario(&p.check(Path::new("p.json")).unwrap(), &sc, None)
+        .unwrap()
+        .record
+}
+
+fn predict(p: &PlantSpec, rec: &IoRecord) -> Vec<Vec<f64>> {
+    let plant: Plant = p.check(Path::new("model.json")).unwrap();
+    let u: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
+    plant.simulate(&u, rec.ts).unwrap()
+}
+
+/// 1 kHz, 40 s: a sine sweep of amplitudes and frequencies, then held steps.
+const SCENARIO_1: &str = r#"{"name":"mix","sampling_period_s":0.001,"samples":40000,"seed":4,
+ "inputs":[{"concat":[
+   {"duration_s":20,"excitation":{"sum":[{"sine":{"amplitude":25,"frequency_hz":0.7}},{"sine":{"amplitude":10,"frequency_hz":3.1,"phase_rad":1}},{"random_steps":{"amplitude":5,"min_hold_s":0.05,"max_hold_s":0.3}}]}},
+   {"duration_s":20,"excitation":{"staircase":{"levels":[20,35,5,-20,10],"hold_s":4}}}]}]}"#;
+
+const BW: &str = r#"{"bouc_wen":{"d":0.8,"A":0.3,"B":0.02,"Gamma":0.01}}"#;
+
+fn siso(hyst: &str, creep: bool, dynamics: bool) -> PlantSpec {
+    let mut s = format!(
+        r#"{{"name":"p","inputs":["u"],"outputs":[{{"name":"y","paths":[{{"input":"u","hysteresis":{hyst}}}]"#
+    );
+    if creep {
+        s += r#","creep":{"time_constants_s":[0.1,1,10],"percent_per_decade":2.0}"#;
+    }
+    if dynamics {
+        s += r#","dynamics":{"natural_frequency_hz":40,"damping_ratio":0.05}"#;
+    }
+    s += "}]}";
+    plant(&s)
+}
+
+fn check_case(
+    name: &str,
+    truth: &PlantSpec,
+    model: &PlantSpec,
+    model_effects: &[EffectName],
+    expect: Option<EffectName>,
+    scenario: &str,
+) {
+    for noise in [0.01, 0.1] {
+        let rec = record(truth, scenario, noise);
+        let d = diagnose(
+            &rec,
+            &predict(model, &rec),
+            model_effects,
+            &DiagnoseOptions::default(),
+        );
+        let ranking: Vec<_> = d
+            .ranking
+            .iter()
+            .map(|r| format!("{} {:.3}", r.effect, r.explained))
+            .collect();
+        println!(
+            "{name} noise {noise}: missing {:?}, ranking {ranking:?}",
+            d.missing
+        );
+        assert_eq!(
+            d.missing, expect,
+            "{name} at noise {noise}: ranking {ranking:?}; {:?}",
+            d.summary
+        );
+        if let Some(e) = expect {
+            assert_eq!(d.ranking[0].effect, e);
+        }
+    }
+}
+
+const LINEAR: &str = r#"{"linear":{"gain":0.8}}"#;
+use EffectName::*;
+
+#[test]
+fn missing_hysteresis_is_named() {
+    check_case(
+        "hysteresis",
+        &siso(BW, true, true),
+        &siso(LINEAR, true, true),
+        &[Creep, Dynamics],
+        Some(Hysteresis),
+        SCENARIO_1,
+    );
+}
+
+#[test]
+fn missing_creep_is_named() {
+    check_case(
+        "creep",
+        &siso(BW, true, true),
+        &siso(BW, false, true),
+        &[Hysteresis, Dynamics],
+        Some(Creep),
+        SCENARIO_1,
+    );
+}
+
+#[test]
+fn missing_dynamics_is_named() {
+    check_case(
+        "dynamics",
+        &siso(BW, true, true),
+        &siso(BW, true, false),
+        &[Hysteresis, Creep],
+        Some(Dynamics),
+        SCENARIO_1,
+    );
+}
+
+#[test]
+fn complete_siso_model_has_nothing_missing() {
+    let p = siso(BW, true, true);
+    check_case(
+        "complete",
+        &p,
+        &p,
+        &[Hysteresis, Creep, Dynamics],
+        None,
+        SCENARIO_1,
+    );
+    // a plant without creep and dynamics, with a model that has what the plant has
+    let p = siso(BW, false, false);
+    check_case("complete-partial", &p, &p, &[Hysteresis], None, SCENARIO_1);
+}
+
+const SCENARIO_2: &str = r#"{"name":"mix2","sampling_period_s":0.001,"samples":40000,"seed":5,
+ "inputs":[{"sum":[{"sine":{"amplitude":25,"frequency_hz":0.7}},{"random_steps":{"amplitude":10,"min_hold_s":0.1,"max_hold_s":0.5}}]},
+           {"sum":[{"sine":{"amplitude":25,"frequency_hz":1.1}},{"random_steps":{"amplitude":10,"min_hold_s":0.1,"max_hold_s":0.5}}]}]}"#;
+
+fn mimo(coupled: bool) -> PlantSpec {
+    let cross = |u: &str| {
+        format!(
+            r#",{{"input":"{u}","hysteresis":{{"bouc_wen":{{"d":0.12,"A":0.06,"B":0.03,"Gamma":0.01}}}}}}"#
+        )
+    };
+    plant(&format!(
+        r#"{{"name":"m","inputs":["u1","u2"],"outputs":[
+        {{"name":"y1","paths":[{{"input":"u1","hysteresis":{BW}}}{}],"dynamics":{{"natural_frequency_hz":40,"damping_ratio":0.05}}}},
+        {{"name":"y2","paths":[{{"input":"u2","hysteresis":{BW}}}{}],"dynamics":{{"natural_frequency_hz":60,"damping_ratio":0.05}}}}]}}"#,
+        if coupled { cross("u2") } else { String::new() },
+        if coupled { cross("u1") } else { String::new() },
+    ))
+}
+
+#[test]
+fn missing_coupling_is_named_and_complete_mimo_is_clean() {
+    check_case(
+        "coupling",
+        &mimo(true),
+        &mimo(false),
+        &[Hysteresis, Dynamics],
+        Some(Coupling),
+        SCENARIO_2,
+    );
+    check_case(
+        "complete-mimo",
+        &mimo(true),
+        &mimo(true),
+        &[Hysteresis, Dynamics, Coupling],
+        None,
+        SCENARIO_2,
+    );
+}
+
+#[test]
+fn the_missing_effect_ranks_above_other_absent_ones() {
+    // the model lacks both creep and dynamics, the plant has only one of them
+    check_case(
+        "creep-only",
+        &siso(BW, true, false),
+        &siso(BW, false, false),
+        &[Hysteresis],
+        Some(Creep),
+        SCENARIO_1,
+    );
+    check_case(
+        "dynamics-only",
+        &siso(BW, false, true),
+        &siso(BW, false, false),
+        &[Hysteresis],
+        Some(Dynamics),
+        SCENARIO_1,
+    );
+    check_case(
+        "hysteresis-only",
+        &siso(BW, false, false),
+        &siso(LINEAR, false, false),
+        &[],
+        Some(Hysteresis),
+        SCENARIO_1,
+    );
+}
