@@ -106,6 +106,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let cmp = compare(&io, &pred);
     let md = markdown(model.as_ref(), &a.data, &cmp);
     if let Some(dir) = &a.report {
+        // figures beside the report: loop, time, residual loop, spectrum
+        let stem = a
+            .data
+            .file_stem()
+            .map_or("record".into(), |s| s.to_string_lossy().to_string());
+        let mut rec = crate::plot::PlotRecord::from_io(stem, io.clone());
+        for (j, p) in pred.iter().enumerate() {
+            rec = rec.with_prediction(j, p.clone())?;
+        }
+        let figures = crate::plot::report_figures(&rec, dir, "", true)?;
+        let mut md = md.clone();
+        md += "## Figures\n\n";
+        for f in &figures {
+            let name = f
+                .file_name()
+                .map_or(String::new(), |n| n.to_string_lossy().to_string());
+            md += &format!("![{name}]({name})\n");
+        }
         crate::data::write_atomic(&dir.join("report.md"), md.as_bytes(), true)?;
         let (mut names, mut cols) = io.to_columns();
         for (s, p) in io.outputs.iter().zip(&pred) {

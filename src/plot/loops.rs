@@ -17,7 +17,7 @@ use super::axes::{self, colour_bar, legend, legend_line};
 use super::decimate::decimate;
 use super::render::{render_err, save, Figure};
 use super::source::{cycle_index, PlotRecord};
-use super::style::{self, axis_label, viridis, PANEL};
+use super::style::{self, viridis, PANEL};
 use super::PlotError;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -127,7 +127,7 @@ impl<'a> LoopFigure<'a> {
         let r = &self.records[0];
         let names: Vec<&str> = self.records.iter().map(|r| r.label.as_str()).collect();
         if r.io.inputs.len() == 1 && r.io.outputs.len() == 1 {
-            let q = |n: &str| style::Quantity::from_column(n).name;
+            let q = |n: &str| r.quantity(n).name;
             format!(
                 "Hysteresis loop: {} vs {} ({})",
                 q(&r.io.outputs[0].name),
@@ -227,8 +227,8 @@ impl LoopFigure<'_> {
             &caption,
             xr,
             yr,
-            &axis_label(uname),
-            &axis_label(yname),
+            &rec0.quantity(uname).label(),
+            &rec0.quantity(yname).label(),
         )?;
         let mut n_series = 0;
         let mut labelled = 0;

@@ -8,7 +8,7 @@ use super::axes;
 use super::decimate::stride;
 use super::render::{render_err, save, Figure};
 use super::source::PlotRecord;
-use super::style::{self, axis_label, fmt_num, Quantity, PANEL};
+use super::style::{self, fmt_num, PANEL};
 use super::PlotError;
 use crate::metrics::r2;
 use plotters::coord::Shift;
@@ -96,13 +96,13 @@ impl Figure for ParityFigure<'_> {
                 } else {
                     format!("{name}: R² = {score}")
                 };
-                let q = Quantity::from_column(oname);
+                let q = r.quantity(oname);
                 let mut chart = axes::chart(
                     &areas[i * cols + c],
                     &caption,
                     range,
                     range,
-                    &format!("measured {}", axis_label(oname)),
+                    &q.label_with(&format!("measured {}", q.name)),
                     &q.label_with(&format!("predicted {}", q.name)),
                 )?;
                 chart

@@ -3,6 +3,7 @@
 //! measured outputs, `<output>_hat`).
 
 use super::decimate::turning_points;
+use super::style::Quantity;
 use super::PlotError;
 use crate::data::{read_csv, DataError, IoRecord, Record, Signal};
 use std::path::Path;
@@ -17,6 +18,9 @@ pub struct PlotRecord {
     pub predicted: Vec<Option<Vec<f64>>>,
     /// The record's column names, listed in errors.
     pub columns: Vec<String>,
+    /// Units given by the caller (column, unit), for columns whose names carry none
+    /// (a simulated plant's `u`, `y` with its spec's units).
+    pub units: Vec<(String, String)>,
 }
 
 impl PlotRecord {
@@ -30,6 +34,7 @@ impl PlotRecord {
             predicted: vec![None; io.outputs.len()],
             io,
             columns,
+            units: Vec::new(),
         }
     }
 
@@ -100,6 +105,7 @@ impl PlotRecord {
             io,
             predicted,
             columns: rec.names.clone(),
+            units: Vec::new(),
         })
     }
 
@@ -111,6 +117,35 @@ impl PlotRecord {
     ) -> Result<PlotRecord, PlotError> {
         let rec = read_csv(path)?;
         PlotRecord::from_record(&rec, inputs, outputs)
+    }
+
+    /// Give every input the unit `input` and every output the unit `output` (empty: none),
+    /// e.g. from a plant spec's units; used in axis labels.
+    pub fn with_units(mut self, input: &str, output: &str) -> PlotRecord {
+        for s in &self.io.inputs {
+            if !input.is_empty() {
+                self.units.push((s.name.clone(), input.to_string()));
+            }
+        }
+        for s in &self.io.outputs {
+            if !output.is_empty() {
+                self.units.push((s.name.clone(), output.to_string()));
+            }
+        }
+        self
+    }
+
+    /// The quantity and unit of a column: a unit given with [`PlotRecord::with_units`], else
+    /// the one its name carries (`voltage_V`).
+    pub fn quantity(&self, column: &str) -> Quantity {
+        let base = column.strip_suffix("_hat").unwrap_or(column);
+        match self.units.iter().find(|(c, _)| c == base) {
+            Some((_, u)) => Quantity {
+                name: base.to_string(),
+                unit: Some(u.clone()),
+            },
+            None => Quantity::from_column(column),
+        }
     }
 
     /// Number of samples.
@@ -198,6 +233,7 @@ impl PlotRecord {
                         .map(|p| p.as_ref().map(|p| p[i..j + 1].to_vec()))
                         .collect(),
                     columns: self.columns.clone(),
+                    units: self.units.clone(),
                 })
             }
             _ => Err(PlotError::EmptyWindow {

@@ -20,7 +20,7 @@
 use super::axes::{self, legend, legend_line};
 use super::render::{render_err, save, Figure};
 use super::source::PlotRecord;
-use super::style::{self, axis_label, FONT, PANEL};
+use super::style::{self, FONT, PANEL};
 use super::PlotError;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -235,7 +235,7 @@ impl Figure for SpectrumFigure<'_> {
                 .x_desc("frequency [Hz]")
                 .y_desc(format!(
                     "amplitude of {}",
-                    axis_label(&r.io.outputs[j].name)
+                    r.quantity(&r.io.outputs[j].name).label()
                 ))
                 .draw()
                 .map_err(render_err)?;

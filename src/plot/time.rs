@@ -9,7 +9,7 @@ use super::axes::{self, legend, legend_line};
 use super::decimate::decimate;
 use super::render::{render_err, save, Figure};
 use super::source::PlotRecord;
-use super::style::{self, axis_label, time_label, Quantity};
+use super::style::{self, time_label};
 use super::PlotError;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -96,7 +96,7 @@ impl Figure for TimeFigure<'_> {
             let ylabel = match panel {
                 Panel::Signal { name, values } => {
                     series.push((name.clone(), values, style::series_colour(0)));
-                    axis_label(name)
+                    r.quantity(name).label()
                 }
                 Panel::Fit { j } => {
                     let s = &r.io.outputs[*j];
@@ -104,12 +104,12 @@ impl Figure for TimeFigure<'_> {
                     if let Some(p) = &r.predicted[*j] {
                         series.push(("model".into(), p, style::series_colour(1)));
                     }
-                    axis_label(&s.name)
+                    r.quantity(&s.name).label()
                 }
                 Panel::Residual { j } => {
                     residual = r.residual(*j).unwrap_or_default();
                     series.push(("residual".into(), &residual, style::series_colour(2)));
-                    let q = Quantity::from_column(&r.io.outputs[*j].name);
+                    let q = r.quantity(&r.io.outputs[*j].name);
                     q.label_with(&format!("residual {}", q.name))
                 }
             };
