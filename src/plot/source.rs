@@ -6,6 +6,7 @@ use super::decimate::turning_points;
 use super::style::Quantity;
 use super::PlotError;
 use crate::data::{read_csv, DataError, IoRecord, Record, Signal};
+use crate::metrics::ptp;
 use std::path::Path;
 
 /// A record to plot: inputs, measured outputs and, per output, the model's prediction if any.
@@ -252,20 +253,6 @@ pub fn values(s: &Signal) -> &[f64] {
     &s.values
 }
 
-/// Peak to peak.
-pub fn ptp(x: &[f64]) -> f64 {
-    let (lo, hi) = x
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-            (a.min(v), b.max(v))
-        });
-    if hi >= lo {
-        hi - lo
-    } else {
-        0.0
-    }
-}
-
 /// Cycle number of every sample: the count of input reversals so far (reversals swinging more
 /// than 2 % of the input's range) divided by two. Minor loops get their own numbers.
 pub fn cycle_index(x: &[f64]) -> Vec<u32> {
@@ -283,37 +270,19 @@ pub fn cycle_index(x: &[f64]) -> Vec<u32> {
     out
 }
 
-/// Signed area enclosed by the path (x, y), closed from the last point back to the first
-/// (shoelace formula). Counter-clockwise is positive.
-pub fn shoelace_area(x: &[f64], y: &[f64]) -> f64 {
-    let n = x.len().min(y.len());
-    if n < 3 {
-        return 0.0;
-    }
-    let (mx, my) = (
-        x[..n].iter().sum::<f64>() / n as f64,
-        y[..n].iter().sum::<f64>() / n as f64,
-    );
-    let mut a = 0.0;
-    for k in 0..n {
-        let j = (k + 1) % n;
-        a += (x[k] - mx) * (y[j] - my) - (x[j] - mx) * (y[k] - my);
-    }
-    0.5 * a
-}
-
-/// Loop area of (x, y) per cycle of x, normalised by the bounding box `ptp(x) * ptp(y)`:
+/// Loop area of (x, y) per cycle of x (shoelace formula, closed from the last point back to the
+/// first), normalised by the bounding box `ptp(x) * ptp(y)`:
 /// 0 for a single-valued curve, about 0.785 for a circle traced once per cycle.
 /// Returns (normalised area, cycles used).
 pub fn normalised_loop_area(x: &[f64], y: &[f64]) -> (f64, u32) {
-    let bx = ptp(x) * ptp(y);
     // a loop per two reversals, the record's ends counting as half a reversal each
     let reversals = turning_points(x, 0.02 * ptp(x)).len() as u32;
     let cycles = reversals.div_ceil(2).max(1);
-    if bx <= 0.0 {
-        return (0.0, cycles);
-    }
-    (shoelace_area(x, y).abs() / cycles as f64 / bx, cycles)
+    // the whole-record area of `metrics` (what `compare` reports), per cycle
+    (
+        crate::metrics::normalised_loop_area(x, y).abs() / cycles as f64,
+        cycles,
+    )
 }
 
 #[cfg(test)]
