@@ -3,7 +3,7 @@
 //! measured outputs, `<output>_hat`).
 
 use super::decimate::turning_points;
-use super::style::Quantity;
+use super::style::{unit_display, Quantity};
 use super::PlotError;
 use crate::data::{read_csv, DataError, IoRecord, Record, Signal};
 use crate::metrics::ptp;
@@ -117,7 +117,11 @@ impl PlotRecord {
         outputs: Option<&[String]>,
     ) -> Result<PlotRecord, PlotError> {
         let rec = read_csv(path)?;
-        PlotRecord::from_record(&rec, inputs, outputs)
+        let r = PlotRecord::from_record(&rec, inputs, outputs)?;
+        Ok(match sidecar_units(path) {
+            Some((i, o)) => r.with_units(&i, &o),
+            None => r,
+        })
     }
 
     /// Give every input the unit `input` and every output the unit `output` (empty: none),
@@ -125,12 +129,12 @@ impl PlotRecord {
     pub fn with_units(mut self, input: &str, output: &str) -> PlotRecord {
         for s in &self.io.inputs {
             if !input.is_empty() {
-                self.units.push((s.name.clone(), input.to_string()));
+                self.units.push((s.name.clone(), unit_display(input)));
             }
         }
         for s in &self.io.outputs {
             if !output.is_empty() {
-                self.units.push((s.name.clone(), output.to_string()));
+                self.units.push((s.name.clone(), unit_display(output)));
             }
         }
         self
@@ -251,6 +255,16 @@ impl PlotRecord {
 /// A named signal's values.
 pub fn values(s: &Signal) -> &[f64] {
     &s.values
+}
+
+/// The plant's units from the JSON sidecar `hystbench simulate` writes beside a record
+/// (`<stem>.json` with `plant.units.input/output`); `None` when there is none or it does not say.
+pub fn sidecar_units(csv: &Path) -> Option<(String, String)> {
+    let text = std::fs::read_to_string(csv.with_extension("json")).ok()?;
+    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
+    let u = v.get("plant")?.get("units")?;
+    let get = |k: &str| u.get(k).and_then(|x| x.as_str()).unwrap_or("").to_string();
+    Some((get("input"), get("output")))
 }
 
 /// Cycle number of every sample: the count of input reversals so far (reversals swinging more

@@ -133,6 +133,14 @@ const UNITS: &[(&str, &str)] = &[
     ("g", "g"),
 ];
 
+/// How a unit prints: `um` -> "µm", `deg` -> "°"; unknown units as given.
+pub fn unit_display(unit: &str) -> String {
+    UNITS
+        .iter()
+        .find(|(u, _)| *u == unit)
+        .map_or(unit.to_string(), |(_, shown)| (*shown).to_string())
+}
+
 /// A column name split into a quantity and its unit: `displacement_um` -> ("displacement", "µm").
 #[derive(Debug, Clone, PartialEq)]
 pub struct Quantity {
