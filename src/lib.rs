@@ -20,4 +20,5 @@ pub mod model;
 pub mod plant;
 pub mod plot;
 pub mod scenario;
+pub mod signal;
 pub mod simulator;

@@ -51,6 +51,11 @@ pub fn markdown(model: &dyn Model, data: &std::path::Path, cmp: &[OutputComparis
     let mut s = format!("# {} against {}\n\n", model.describe(), data.display());
     for c in cmp {
         let u = unit_of(&c.output);
+        let bracket = if u.is_empty() {
+            String::new()
+        } else {
+            format!(" [{u}]")
+        };
         let sc = &c.scores;
         let _ = writeln!(s, "## {}\n", c.output);
         let _ = writeln!(
@@ -69,7 +74,7 @@ pub fn markdown(model: &dyn Model, data: &std::path::Path, cmp: &[OutputComparis
             "Residual-against-{} loop area: {:.4} (0 for a model with the right memory).\n",
             c.input, c.residual_loop_area
         );
-        let _ = writeln!(s, "| where | samples | RMS error [{u}] |\n|---|---|---|");
+        let _ = writeln!(s, "| where | samples | RMS error{bracket} |\n|---|---|---|");
         for sl in c
             .by_direction
             .iter()
@@ -80,7 +85,7 @@ pub fn markdown(model: &dyn Model, data: &std::path::Path, cmp: &[OutputComparis
                 let _ = writeln!(s, "| {} | {} | {:.4} |", sl.label, sl.samples, sl.rms);
             }
         }
-        let _ = writeln!(s, "\n| frequency band | RMS error [{u}] |\n|---|---|");
+        let _ = writeln!(s, "\n| frequency band | RMS error{bracket} |\n|---|---|");
         for sl in &c.by_frequency {
             let _ = writeln!(s, "| {} | {:.4} |", sl.label, sl.rms);
         }
@@ -97,6 +102,25 @@ pub fn markdown(model: &dyn Model, data: &std::path::Path, cmp: &[OutputComparis
     s
 }
 
+/// Loop (measured and predicted), time, residual-loop and spectrum figures beside a report;
+/// their names.
+pub fn write_figures(
+    dir: &std::path::Path,
+    io: &IoRecord,
+    pred: &[Vec<f64>],
+) -> anyhow::Result<Vec<String>> {
+    let mut rec = crate::plot::PlotRecord::from_io("measured", io.clone());
+    for (j, p) in pred.iter().enumerate() {
+        rec = rec.with_prediction(j, p.clone())?;
+    }
+    // staged together: all figures or none
+    let paths = crate::plot::report_figures(&rec, dir, "", true)?;
+    Ok(paths
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().to_string()))
+        .collect())
+}
+
 pub fn run(a: Args) -> anyhow::Result<()> {
     let model = load_model(&a.model)?;
     if let Some(dir) = &a.report {
@@ -106,40 +130,27 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let cmp = compare(&io, &pred);
     let md = markdown(model.as_ref(), &a.data, &cmp);
     if let Some(dir) = &a.report {
-        // figures beside the report: loop, time, residual loop, spectrum
-        let stem = a
-            .data
-            .file_stem()
-            .map_or("record".into(), |s| s.to_string_lossy().to_string());
-        let mut rec = crate::plot::PlotRecord::from_io(stem, io.clone());
-        for (j, p) in pred.iter().enumerate() {
-            rec = rec.with_prediction(j, p.clone())?;
-        }
-        let figures = crate::plot::report_figures(&rec, dir, "", true)?;
-        let mut md = md.clone();
-        md += "## Figures\n\n";
-        for f in &figures {
-            let name = f
-                .file_name()
-                .map_or(String::new(), |n| n.to_string_lossy().to_string());
-            md += &format!("![{name}]({name})\n");
-        }
-        crate::data::write_atomic(&dir.join("report.md"), md.as_bytes(), true)?;
         let (mut names, mut cols) = io.to_columns();
         for (s, p) in io.outputs.iter().zip(&pred) {
             names.push(format!("{}_hat", s.name));
             cols.push(p.clone());
         }
         crate::data::write_csv_atomic(&dir.join("prediction.csv"), &names, &cols, true)?;
+        let figures = write_figures(dir, &io, &pred)?;
+        let mut md = md.clone();
+        md += "## Figures\n\n";
+        for f in figures {
+            md += &format!("![{f}]({f})\n\n");
+        }
+        crate::data::write_atomic(&dir.join("report.md"), md.as_bytes(), true)?;
         eprintln!("report: {}", dir.join("report.md").display());
     }
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string(&serde_json::json!({ "outputs": cmp }))?
-        );
+        crate::cli::print(&serde_json::to_string(
+            &serde_json::json!({ "outputs": cmp }),
+        )?);
     } else {
-        println!("{md}");
+        crate::cli::print(&md);
     }
     Ok(())
 }

@@ -97,7 +97,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     let report = a.out.join("README.md");
     crate::data::write_atomic(&report, md.as_bytes(), true)?;
-    println!("{md}");
-    println!("report: {}", report.display());
+    crate::cli::print(&md);
+    crate::cli::print(&format!("report: {}", report.display()));
     Ok(())
 }

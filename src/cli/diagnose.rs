@@ -64,9 +64,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let (io, pred) = predict_record(&a.data, model.as_ref())?;
     let d = diagnose(&io, &pred, &model.effects(), &DiagnoseOptions::default());
     if a.json {
-        println!("{}", serde_json::to_string(&d)?);
+        crate::cli::print(&serde_json::to_string(&d)?);
     } else {
-        print!("{}", text(&d));
+        crate::cli::print(&text(&d));
     }
     Ok(())
 }

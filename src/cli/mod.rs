@@ -22,8 +22,6 @@ pub struct Cli {
 /// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Draw a figure (PNG or SVG): loop, time, residual-loop, parity, spectrum, sweep, ladder.
-    Plot(plot::PlotArgs),
     /// Compare a model with a record: scores and where it fails.
     Compare(compare::Args),
     /// Which physical effect does the model miss?
@@ -32,16 +30,29 @@ pub enum Command {
     Demo(demo::Args),
     /// Simulate a plant on a scenario or a recorded input and write a record.
     Simulate(simulate::Args),
+    /// Draw a figure (PNG or SVG): loop, time, residual-loop, parity, spectrum, sweep, ladder.
+    Plot(plot::PlotArgs),
+}
+
+/// Print to standard output, ending with a newline; a closed pipe (`| head`) is not an error.
+pub fn print(text: &str) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    let _ = out.write_all(text.as_bytes());
+    if !text.ends_with('\n') {
+        let _ = out.write_all(b"\n");
+    }
+    let _ = out.flush();
 }
 
 /// Run one parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Command::Plot(args) => plot::run(args),
         Command::Compare(a) => compare::run(a),
         Command::Demo(a) => demo::run(a),
         Command::Diagnose(a) => diagnose::run(a),
         Command::Simulate(a) => simulate::run(a),
+        Command::Plot(args) => plot::run(args),
     }
 }
 

@@ -47,45 +47,29 @@ fn slice(label: &str, e: &[f64], mask: impl Fn(usize) -> bool) -> Slice {
     }
 }
 
-/// Error in frequency bands: the residual's power in octave bands, from a direct DFT of a
-/// decimated copy (a few thousand points), reported as RMS per band.
+/// Error in frequency bands: the residual's amplitude spectrum (Hann window, whole record)
+/// summed in bands a factor 4 wide from Nyquist down, as RMS per band (a sinusoid of amplitude A
+/// contributes A / sqrt(2); the Hann window's noise bandwidth of 1.5 bins is divided out).
 fn frequency_bands(e: &[f64], ts: f64) -> Vec<Slice> {
-    let step = (e.len() / 4096).max(1);
-    let x: Vec<f64> = e.iter().step_by(step).copied().collect();
-    let n = x.len();
-    let dt = ts * step as f64;
-    let fmax = 0.5 / dt;
-    let mut bands = Vec::new();
-    let mut hi = fmax;
-    while hi > 1.0 / (n as f64 * dt) * 2.0 && bands.len() < 8 {
+    let (f, a) = crate::signal::amplitude_spectrum(e, ts);
+    let mut out = Vec::new();
+    let Some(&f_low) = f.first() else { return out };
+    let mut hi = 0.5 / ts;
+    while hi > 2.0 * f_low && out.len() < 8 {
         let lo = hi / 4.0;
-        bands.push((lo, hi));
-        hi = lo;
-    }
-    let mut power = vec![0.0; bands.len()];
-    for m in 1..n / 2 {
-        let f = m as f64 / (n as f64 * dt);
-        let Some(b) = bands.iter().position(|(lo, hi)| f > *lo && f <= *hi) else {
-            continue;
-        };
-        let w = -2.0 * std::f64::consts::PI * m as f64 / n as f64;
-        let (mut re, mut im) = (0.0, 0.0);
-        for (k, v) in x.iter().enumerate() {
-            let (s, c) = (w * k as f64).sin_cos();
-            re += v * c;
-            im += v * s;
-        }
-        power[b] += 2.0 * (re * re + im * im) / (n as f64 * n as f64);
-    }
-    bands
-        .iter()
-        .zip(power)
-        .map(|((lo, hi), p)| Slice {
+        let (p, n) = f
+            .iter()
+            .zip(&a)
+            .filter(|(f, _)| **f > lo && **f <= hi)
+            .fold((0.0, 0usize), |(p, n), (_, a)| (p + a * a / 2.0, n + 1));
+        out.push(Slice {
             label: format!("{lo:.3}-{hi:.3} Hz"),
             samples: n,
-            rms: p.sqrt(),
-        })
-        .collect()
+            rms: (p / 1.5).sqrt(),
+        });
+        hi = lo;
+    }
+    out
 }
 
 /// Compare predictions (one per output) with the record.

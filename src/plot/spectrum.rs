@@ -24,93 +24,9 @@ use super::style::{self, FONT, PANEL};
 use super::PlotError;
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use std::f64::consts::PI;
 use std::path::Path;
 
-/// In-place iterative radix-2 FFT of (re, im); the length must be a power of two.
-pub fn fft(re: &mut [f64], im: &mut [f64]) {
-    let n = re.len();
-    debug_assert!(n.is_power_of_two() && im.len() == n);
-    let mut j = 0;
-    for i in 1..n {
-        let mut bit = n >> 1;
-        while j & bit != 0 {
-            j ^= bit;
-            bit >>= 1;
-        }
-        j |= bit;
-        if i < j {
-            re.swap(i, j);
-            im.swap(i, j);
-        }
-    }
-    let mut len = 2;
-    while len <= n {
-        let ang = -2.0 * PI / len as f64;
-        let half = len / 2;
-        // twiddles computed directly per index: exact enough and simple
-        let tw: Vec<(f64, f64)> = (0..half)
-            .map(|k| ((ang * k as f64).cos(), (ang * k as f64).sin()))
-            .collect();
-        for start in (0..n).step_by(len) {
-            for (k, &(c, s)) in tw.iter().enumerate() {
-                let (a, b) = (start + k, start + k + half);
-                let (xr, xi) = (re[b] * c - im[b] * s, re[b] * s + im[b] * c);
-                re[b] = re[a] - xr;
-                im[b] = im[a] - xi;
-                re[a] += xr;
-                im[a] += xi;
-            }
-        }
-        len <<= 1;
-    }
-}
-
-/// Longest segment transformed at once; longer records are averaged over half-overlapping
-/// segments of this length (Welch).
-pub const MAX_SEGMENT: usize = 1 << 20;
-
-/// Amplitude spectrum of `x` sampled every `ts` seconds: (frequencies in Hz, amplitudes), without
-/// the 0 Hz bin. The whole record (up to [`MAX_SEGMENT`] samples; longer ones are Welch-averaged)
-/// is Hann-windowed, mean-removed, zero-padded to a power of two and transformed, so the
-/// resolution is that of the record's length. Needs at least 16 samples.
-pub fn amplitude_spectrum(x: &[f64], ts: f64) -> (Vec<f64>, Vec<f64>) {
-    let n = x.len();
-    if n < 16 {
-        return (Vec::new(), Vec::new());
-    }
-    let l = n.min(MAX_SEGMENT);
-    let nfft = l.next_power_of_two();
-    let w: Vec<f64> = (0..l)
-        .map(|k| 0.5 - 0.5 * (2.0 * PI * k as f64 / l as f64).cos())
-        .collect();
-    let wsum: f64 = w.iter().sum();
-    let mut power = vec![0.0; nfft / 2 + 1];
-    let mut segments = 0;
-    let mut start = 0;
-    let (mut re, mut im) = (vec![0.0; nfft], vec![0.0; nfft]);
-    while start + l <= n {
-        let seg = &x[start..start + l];
-        let mean = seg.iter().sum::<f64>() / l as f64;
-        re.iter_mut().for_each(|v| *v = 0.0);
-        im.iter_mut().for_each(|v| *v = 0.0);
-        for k in 0..l {
-            re[k] = (seg[k] - mean) * w[k];
-        }
-        fft(&mut re, &mut im);
-        for (k, p) in power.iter_mut().enumerate() {
-            *p += re[k] * re[k] + im[k] * im[k];
-        }
-        segments += 1;
-        start += l / 2;
-    }
-    let df = 1.0 / (nfft as f64 * ts);
-    let f = (1..=nfft / 2).map(|k| k as f64 * df).collect();
-    let a = (1..=nfft / 2)
-        .map(|k| 2.0 * (power[k] / segments as f64).sqrt() / wsum)
-        .collect();
-    (f, a)
-}
+pub use crate::signal::{amplitude_spectrum, MAX_SEGMENT};
 
 /// Indices of the bins to draw: per log-spaced frequency bucket the smallest and largest value.
 fn log_decimate(f: &[f64], a: &[f64], buckets: usize) -> Vec<usize> {
@@ -275,30 +191,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn fft_matches_the_direct_dft() {
-        let n = 64;
-        let x: Vec<f64> = (0..n).map(|k| ((k * 7 % 13) as f64 - 6.0) * 0.3).collect();
-        let (mut re, mut im) = (x.clone(), vec![0.0; n]);
-        fft(&mut re, &mut im);
-        for f in 0..n {
-            let (mut sr, mut si) = (0.0, 0.0);
-            for (k, v) in x.iter().enumerate() {
-                let a = -2.0 * PI * (f * k) as f64 / n as f64;
-                sr += v * a.cos();
-                si += v * a.sin();
-            }
-            assert!(
-                (re[f] - sr).abs() < 1e-9 && (im[f] - si).abs() < 1e-9,
-                "bin {f}"
-            );
-        }
-    }
-
-    #[test]
     fn a_sine_shows_its_amplitude_at_its_frequency() {
         let ts = 1e-3;
         let x: Vec<f64> = (0..20_000)
-            .map(|k| 2.5 * (2.0 * PI * 50.0 * k as f64 * ts).sin() + 1.0)
+            .map(|k| 2.5 * (2.0 * std::f64::consts::PI * 50.0 * k as f64 * ts).sin() + 1.0)
             .collect();
         let (f, a) = amplitude_spectrum(&x, ts);
         let (kmax, amax) = a

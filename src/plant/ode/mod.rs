@@ -381,7 +381,7 @@ fn fft_upsample(u: &[f64], p: usize) -> Vec<f64> {
     let n = u.len();
     let big = n * p;
     let mut x: Vec<Complex<f64>> = u.iter().map(|&v| Complex::new(v, 0.0)).collect();
-    fft_in_place(&mut x, false);
+    crate::signal::fft_in_place(&mut x, false);
     let mut y = vec![Complex::new(0.0, 0.0); big];
     let half = n / 2;
     y[..half].copy_from_slice(&x[..half]);
@@ -393,63 +393,13 @@ fn fft_upsample(u: &[f64], p: usize) -> Vec<f64> {
         y[half] = x[half] * 0.5;
         y[big - half] = x[half] * 0.5;
     }
-    fft_in_place(&mut y, true);
+    crate::signal::fft_in_place(&mut y, true);
     y.iter().map(|c| c.re / n as f64).collect()
-}
-
-/// Iterative radix-2 FFT (length must be a power of two); `inverse` without scaling.
-pub(crate) fn fft_in_place(a: &mut [Complex<f64>], inverse: bool) {
-    let n = a.len();
-    if n <= 1 {
-        return;
-    }
-    debug_assert!(n.is_power_of_two());
-    let bits = n.trailing_zeros();
-    for i in 0..n {
-        let j = i.reverse_bits() >> (usize::BITS - bits);
-        if j > i {
-            a.swap(i, j);
-        }
-    }
-    let sign = if inverse { 1.0 } else { -1.0 };
-    let mut len = 2;
-    while len <= n {
-        let ang = sign * 2.0 * std::f64::consts::PI / len as f64;
-        let half = len / 2;
-        // Twiddles computed directly (not by repeated multiplication) to keep round-off low.
-        let tw: Vec<Complex<f64>> = (0..half)
-            .map(|k| Complex::new((ang * k as f64).cos(), (ang * k as f64).sin()))
-            .collect();
-        for start in (0..n).step_by(len) {
-            for k in 0..half {
-                let x = a[start + k];
-                let y = a[start + k + half] * tw[k];
-                a[start + k] = x + y;
-                a[start + k + half] = x - y;
-            }
-        }
-        len <<= 1;
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn fft_matches_naive_dft() {
-        let u: Vec<f64> = (0..16).map(|k| ((k * k) as f64 * 0.37).sin()).collect();
-        let mut a: Vec<Complex<f64>> = u.iter().map(|&v| Complex::new(v, 0.0)).collect();
-        fft_in_place(&mut a, false);
-        for (m, am) in a.iter().enumerate() {
-            let mut s = Complex::new(0.0, 0.0);
-            for (k, &v) in u.iter().enumerate() {
-                let ang = -2.0 * std::f64::consts::PI * (m * k) as f64 / 16.0;
-                s += Complex::new(ang.cos(), ang.sin()) * v;
-            }
-            assert!((s - am).norm() < 1e-12, "bin {m}: {s} vs {am}");
-        }
-    }
 
     /// A periodic band-limited signal is reproduced exactly between its samples.
     #[test]
