@@ -559,3 +559,46 @@ fn the_library_draws_a_loop_without_the_command_line() {
     let png = render(&fig, Format::Png, Some((640, 480))).unwrap();
     assert_eq!(&png[1..4], b"PNG");
 }
+
+#[test]
+fn units_come_from_the_simulate_sidecar_when_the_columns_have_none() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let p = d.join("sim.csv");
+    let mut s = String::from("t,u,y\n");
+    for k in 0..200 {
+        let u = (k as f64 * 0.05).sin();
+        s += &format!("{},{u},{}\n", k as f64 * 1e-3, 0.8 * u);
+    }
+    std::fs::write(&p, s).unwrap();
+    let out = d.join("a.svg");
+    ok(&[
+        "plot",
+        "loop",
+        "--data",
+        p.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let svg = std::fs::read_to_string(&out).unwrap();
+    assert!(!svg.contains("u [V]"));
+    std::fs::write(
+        d.join("sim.json"),
+        r#"{"plant": {"units": {"input": "V", "output": "um"}}}"#,
+    )
+    .unwrap();
+    ok(&[
+        "plot",
+        "loop",
+        "--data",
+        p.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--force",
+    ]);
+    let svg = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        svg.contains("u [V]") && svg.contains("y [µm]"),
+        "units from sim.json"
+    );
+}

@@ -102,31 +102,23 @@ pub fn markdown(model: &dyn Model, data: &std::path::Path, cmp: &[OutputComparis
     s
 }
 
-/// Loop (measured and predicted), time and residual-loop figures beside a report; their names.
+/// Loop (measured and predicted), time, residual-loop and spectrum figures beside a report;
+/// their names.
 pub fn write_figures(
     dir: &std::path::Path,
     io: &IoRecord,
     pred: &[Vec<f64>],
 ) -> anyhow::Result<Vec<String>> {
-    use crate::plot::{loop_figure, residual_loop_figure, time_figure, LoopOptions, PlotRecord};
-    let mut rec = PlotRecord::from_io("measured", io.clone());
+    let mut rec = crate::plot::PlotRecord::from_io("measured", io.clone());
     for (j, p) in pred.iter().enumerate() {
         rec = rec.with_prediction(j, p.clone())?;
     }
-    let mut names = Vec::new();
-    loop_figure(
-        std::slice::from_ref(&rec),
-        &LoopOptions::default(),
-        &dir.join("loop.png"),
-        None,
-        true,
-    )?;
-    names.push("loop.png".to_string());
-    time_figure(&rec, None, &dir.join("time.png"), None, true)?;
-    names.push("time.png".to_string());
-    residual_loop_figure(&rec, None, &dir.join("residual_loop.png"), None, true)?;
-    names.push("residual_loop.png".to_string());
-    Ok(names)
+    // staged together: all figures or none
+    let paths = crate::plot::report_figures(&rec, dir, "", true)?;
+    Ok(paths
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().to_string()))
+        .collect())
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -138,7 +130,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let cmp = compare(&io, &pred);
     let md = markdown(model.as_ref(), &a.data, &cmp);
     if let Some(dir) = &a.report {
-        crate::data::write_atomic(&dir.join("report.md"), md.as_bytes(), true)?;
         let (mut names, mut cols) = io.to_columns();
         for (s, p) in io.outputs.iter().zip(&pred) {
             names.push(format!("{}_hat", s.name));

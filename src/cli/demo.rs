@@ -65,6 +65,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         write_simulation(&sim, &out, true)?;
         let r = &sim.record;
         let units = &plant.units;
+        let rec = crate::plot::PlotRecord::from_io(plant.name.clone(), r.clone())
+            .with_units(&units.input, &units.output);
+        crate::plot::report_figures(&rec, &records, &format!("{}_", plant.name), true)?;
         for (o, y) in r.outputs.iter().enumerate() {
             // the direct input of this output (same index, or the only input)
             let u = &r.inputs[o.min(r.inputs.len() - 1)];
@@ -84,6 +87,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         eprintln!("   {} -> {}", plant.name, out.display());
     }
+    md += "\nLoops: `records/<plant>_loop.png`.\n";
     md += "\nHysteresis width: largest gap between the falling and rising branches over 40 input bins, in % of the output range.\n";
     let _ = writeln!(
         md,

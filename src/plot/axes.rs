@@ -74,12 +74,12 @@ pub fn chart<'a, DB: DrawingBackend>(
     y_label: &str,
 ) -> Result<Chart<'a, DB>, PlotError> {
     let mut b = ChartBuilder::on(area);
-    b.margin(16)
-        .margin_right(28)
-        .x_label_area_size(70)
-        .y_label_area_size(110);
+    b.margin(style::px(16))
+        .margin_right(style::px(28))
+        .x_label_area_size(style::px(70))
+        .y_label_area_size(style::px(110));
     if !caption.is_empty() {
-        b.caption(caption, (FONT, style::CAPTION_SIZE));
+        b.caption(caption, (FONT, style::px(style::CAPTION_SIZE)));
     }
     let mut chart = b
         .build_cartesian_2d(x.0..x.1, y.0..y.1)
@@ -89,16 +89,17 @@ pub fn chart<'a, DB: DrawingBackend>(
     let yf = move |v: &f64| tick(*v, ys);
     chart
         .configure_mesh()
-        .bold_line_style(style::GRID_MAJOR)
-        .light_line_style(style::GRID_MINOR)
+        .bold_line_style(style::GRID_MAJOR.stroke_width(style::px(1)))
+        .light_line_style(style::GRID_MINOR.stroke_width(style::px(1)))
         .max_light_lines(4)
-        .axis_style(BLACK)
+        .axis_style(BLACK.stroke_width(style::px(1)))
+        .set_all_tick_mark_size(style::px(6))
         .x_labels(8)
         .y_labels(8)
         .x_label_formatter(&xf)
         .y_label_formatter(&yf)
-        .label_style((FONT, style::TICK_SIZE))
-        .axis_desc_style((FONT, style::LABEL_SIZE))
+        .label_style((FONT, style::px(style::TICK_SIZE)))
+        .axis_desc_style((FONT, style::px(style::LABEL_SIZE)))
         .x_desc(x_label)
         .y_desc(y_label)
         .draw()
@@ -130,16 +131,21 @@ pub fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
         .position(position)
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK.mix(0.6))
-        .label_font((FONT, style::LEGEND_SIZE))
-        .margin(12)
-        .legend_area_size(36)
+        .label_font((FONT, style::px(style::LEGEND_SIZE)))
+        .margin(style::px(12))
+        .legend_area_size(style::px(36))
         .draw()
         .map_err(render_err)
 }
 
 /// A legend entry symbol: a short line in `colour`.
 pub fn legend_line(colour: RGBColor) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
-    move |(x, y)| PathElement::new(vec![(x, y), (x + 28, y)], colour.stroke_width(4))
+    move |(x, y)| {
+        PathElement::new(
+            vec![(x, y), (x + style::pxi(28), y)],
+            colour.stroke_width(style::px(4)),
+        )
+    }
 }
 
 /// A vertical viridis colour bar from `lo` to `hi` described by `label`, filling `area`.
@@ -156,11 +162,11 @@ pub fn colour_bar<DB: DrawingBackend>(
     };
     let span = hi - lo;
     let mut chart = ChartBuilder::on(area)
-        .margin_top(60)
-        .margin_bottom(86)
-        .margin_right(8)
+        .margin_top(style::px(60))
+        .margin_bottom(style::px(86))
+        .margin_right(style::px(8))
         .y_label_area_size(0)
-        .right_y_label_area_size(90)
+        .right_y_label_area_size(style::px(90))
         .build_cartesian_2d(0.0..1.0, lo..hi)
         .map_err(render_err)?;
     let yf = move |v: &f64| tick(*v, span);
@@ -171,8 +177,8 @@ pub fn colour_bar<DB: DrawingBackend>(
         .disable_x_axis()
         .y_labels(6)
         .y_label_formatter(&yf)
-        .label_style((FONT, style::TICK_SIZE))
-        .axis_desc_style((FONT, style::LABEL_SIZE))
+        .label_style((FONT, style::px(style::TICK_SIZE)))
+        .axis_desc_style((FONT, style::px(style::LABEL_SIZE)))
         .y_desc(label)
         .draw()
         .map_err(render_err)?;
@@ -188,7 +194,7 @@ pub fn colour_bar<DB: DrawingBackend>(
     chart
         .draw_series(std::iter::once(Rectangle::new(
             [(0.0, lo), (1.0, hi)],
-            BLACK.stroke_width(1),
+            BLACK.stroke_width(style::px(1)),
         )))
         .map_err(render_err)?;
     Ok(())
@@ -203,14 +209,15 @@ pub fn titled<DB: DrawingBackend>(
         return Ok(root.clone());
     }
     let (w, _) = root.dim_in_pixel();
-    let (strip, rest) = root.split_vertically(style::TITLE_SIZE + 28);
+    let (strip, rest) = root.split_vertically(style::px(style::TITLE_SIZE + 28));
     // shrink the title until it fits the width
-    let mut size = style::TITLE_SIZE;
-    while size > 12 {
+    let full = style::px(style::TITLE_SIZE);
+    let mut size = full;
+    while size > style::px(12) {
         let (tw, _) = root
             .estimate_text_size(title, &(FONT, size).into_text_style(root))
             .map_err(render_err)?;
-        if tw + 40 <= w {
+        if tw + style::px(40) <= w {
             break;
         }
         size -= 2;
@@ -218,7 +225,7 @@ pub fn titled<DB: DrawingBackend>(
     strip
         .draw(&Text::new(
             title.to_string(),
-            (w as i32 / 2, 14 + (style::TITLE_SIZE - size) as i32 / 2),
+            (w as i32 / 2, style::pxi(14) + (full - size) as i32 / 2),
             (FONT, size)
                 .into_font()
                 .color(&BLACK)

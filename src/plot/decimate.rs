@@ -13,6 +13,7 @@
 //! - U. Jugel et al., "M4: a visualization-oriented time series data aggregation",
 //!   Proc. VLDB Endow. 7(10), 2014, doi:10.14778/2732951.2732953.
 
+use crate::metrics::ptp;
 use std::ops::Range;
 
 /// Indices of the reversals of `x` that swing more than `band` (hysteresis-band turning points,
@@ -68,19 +69,6 @@ pub fn turning_points(x: &[f64], band: f64) -> Vec<usize> {
         }
     }
     out
-}
-
-fn ptp(x: &[f64]) -> f64 {
-    let (lo, hi) = x
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-            (a.min(v), b.max(v))
-        });
-    if hi >= lo {
-        hi - lo
-    } else {
-        0.0
-    }
 }
 
 /// The sample indices to draw of the signals `signals` over `range` (all of the same length), at

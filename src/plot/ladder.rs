@@ -134,10 +134,10 @@ impl Figure for LadderFigure {
             })
             .collect();
         let mut chart = ChartBuilder::on(&body)
-            .margin(16)
-            .margin_right(48)
-            .x_label_area_size(80)
-            .y_label_area_size(110)
+            .margin(style::px(16))
+            .margin_right(style::px(48))
+            .x_label_area_size(style::px(80))
+            .y_label_area_size(style::px(110))
             .build_cartesian_2d((0..n as i32 - 1).into_segmented(), (y0..y1).log_scale())
             .map_err(render_err)?;
         let xf = |v: &SegmentValue<i32>| match v {
@@ -148,15 +148,16 @@ impl Figure for LadderFigure {
         chart
             .configure_mesh()
             .disable_x_mesh()
-            .bold_line_style(style::GRID_MAJOR)
-            .light_line_style(style::GRID_MINOR)
-            .axis_style(BLACK)
+            .bold_line_style(style::GRID_MAJOR.stroke_width(style::px(1)))
+            .light_line_style(style::GRID_MINOR.stroke_width(style::px(1)))
+            .axis_style(BLACK.stroke_width(style::px(1)))
+            .set_all_tick_mark_size(style::px(6))
             .x_labels(n + 1)
             .y_labels(8)
             .x_label_formatter(&xf)
             .y_label_formatter(&yf)
-            .label_style((FONT, style::TICK_SIZE))
-            .axis_desc_style((FONT, style::LABEL_SIZE))
+            .label_style((FONT, style::px(style::TICK_SIZE)))
+            .axis_desc_style((FONT, style::px(style::LABEL_SIZE)))
             .x_desc("effect added at each step")
             .y_desc("RMSE (log scale)")
             .draw()
@@ -170,11 +171,11 @@ impl Figure for LadderFigure {
                 ],
                 c.mix(0.85).filled(),
             );
-            bar.set_margin(0, 0, 24, 24);
+            bar.set_margin(0, 0, style::px(24), style::px(24));
             chart
                 .draw_series(std::iter::once(bar))
                 .map_err(render_err)?;
-            let top = (FONT, style::LEGEND_SIZE)
+            let top = (FONT, style::px(style::LEGEND_SIZE))
                 .into_font()
                 .color(&BLACK)
                 .pos(Pos::new(HPos::Center, VPos::Bottom));
@@ -185,7 +186,7 @@ impl Figure for LadderFigure {
             chart
                 .draw_series(std::iter::once(
                     EmptyElement::at((SegmentValue::CenterOf(i as i32), s.rmse))
-                        + Text::new(text, (0, -8), top),
+                        + Text::new(text, (0, style::pxi(-8)), top),
                 ))
                 .map_err(render_err)?;
         }

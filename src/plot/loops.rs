@@ -17,7 +17,7 @@ use super::axes::{self, colour_bar, legend, legend_line};
 use super::decimate::decimate;
 use super::render::{render_err, save, Figure};
 use super::source::{cycle_index, PlotRecord};
-use super::style::{self, axis_label, viridis, PANEL};
+use super::style::{self, viridis, PANEL};
 use super::PlotError;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -127,7 +127,7 @@ impl<'a> LoopFigure<'a> {
         let r = &self.records[0];
         let names: Vec<&str> = self.records.iter().map(|r| r.label.as_str()).collect();
         if r.io.inputs.len() == 1 && r.io.outputs.len() == 1 {
-            let q = |n: &str| style::Quantity::from_column(n).name;
+            let q = |n: &str| r.quantity(n).name;
             format!(
                 "Hysteresis loop: {} vs {} ({})",
                 q(&r.io.outputs[0].name),
@@ -170,7 +170,7 @@ impl Figure for LoopFigure<'_> {
             body
         } else {
             let w = body.dim_in_pixel().0;
-            let (main, bar) = body.split_horizontally(w.saturating_sub(150));
+            let (main, bar) = body.split_horizontally(w.saturating_sub(style::px(150)));
             match &cycles {
                 Some(c) => colour_bar(&bar, 0.0, c.last().copied().unwrap_or(0) as f64, "cycle")?,
                 None => colour_bar(
@@ -227,8 +227,8 @@ impl LoopFigure<'_> {
             &caption,
             xr,
             yr,
-            &axis_label(uname),
-            &axis_label(yname),
+            &rec0.quantity(uname).label(),
+            &rec0.quantity(yname).label(),
         )?;
         let mut n_series = 0;
         let mut labelled = 0;
@@ -281,7 +281,7 @@ impl LoopFigure<'_> {
                     .draw_series(chunks.into_iter().flat_map(|(l, pts)| {
                         axes::path_elements(
                             pts,
-                            viridis(l as f64 / top).stroke_width(style::LINE_WIDTH),
+                            viridis(l as f64 / top).stroke_width(style::px(style::LINE_WIDTH)),
                         )
                     }))
                     .map_err(render_err)?
@@ -295,7 +295,7 @@ impl LoopFigure<'_> {
                 chart
                     .draw_series(axes::path_elements(
                         idx.iter().map(|&k| (u[k], y[k])).collect::<Vec<_>>(),
-                        c.stroke_width(style::LINE_WIDTH),
+                        c.stroke_width(style::px(style::LINE_WIDTH)),
                     ))
                     .map_err(render_err)?
                     .label(label)
@@ -318,7 +318,7 @@ impl LoopFigure<'_> {
                 chart
                     .draw_series(axes::path_elements(
                         idx.iter().map(|&k| (u[k], p[k])).collect::<Vec<_>>(),
-                        c.stroke_width(style::LINE_WIDTH),
+                        c.stroke_width(style::px(style::LINE_WIDTH)),
                     ))
                     .map_err(render_err)?
                     .label(label)

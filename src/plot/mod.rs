@@ -29,6 +29,7 @@ pub mod ladder;
 pub mod loops;
 pub mod parity;
 pub mod render;
+mod report;
 pub mod residual_loop;
 pub mod source;
 pub mod spectrum;
@@ -47,6 +48,7 @@ pub use source::PlotRecord;
 
 pub use ladder::{ladder_figure, read_ladder, LadderFigure, LadderStep};
 pub use parity::{parity_figure, ParityFigure};
+pub use report::report_figures;
 pub use residual_loop::{residual_loop_figure, ResidualLoopFigure};
 pub use spectrum::{amplitude_spectrum, spectrum_figure, SpectrumFigure};
 pub use sweep::{read_sweep, sweep_figure, SweepFigure, SweepRow};

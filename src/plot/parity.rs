@@ -8,7 +8,7 @@ use super::axes;
 use super::decimate::stride;
 use super::render::{render_err, save, Figure};
 use super::source::PlotRecord;
-use super::style::{self, axis_label, fmt_num, Quantity, PANEL};
+use super::style::{self, fmt_num, PANEL};
 use super::PlotError;
 use crate::metrics::r2;
 use plotters::coord::Shift;
@@ -96,30 +96,28 @@ impl Figure for ParityFigure<'_> {
                 } else {
                     format!("{name}: R² = {score}")
                 };
-                let q = Quantity::from_column(oname);
+                let q = r.quantity(oname);
                 let mut chart = axes::chart(
                     &areas[i * cols + c],
                     &caption,
                     range,
                     range,
-                    &format!("measured {}", axis_label(oname)),
+                    &q.label_with(&format!("measured {}", q.name)),
                     &q.label_with(&format!("predicted {}", q.name)),
                 )?;
                 chart
                     .draw_series(DashedLineSeries::new(
                         vec![(range.0, range.0), (range.1, range.1)],
-                        10,
-                        6,
-                        BLACK.mix(0.7).stroke_width(2),
+                        style::px(10),
+                        style::px(6),
+                        BLACK.mix(0.7).stroke_width(style::px(2)),
                     ))
                     .map_err(render_err)?;
                 let colour = style::series_colour(c);
                 chart
-                    .draw_series(
-                        stride(y.len(), self.max_points)
-                            .into_iter()
-                            .map(|k| Circle::new((y[k], p[k]), 3, colour.mix(0.45).filled())),
-                    )
+                    .draw_series(stride(y.len(), self.max_points).into_iter().map(|k| {
+                        Circle::new((y[k], p[k]), style::px(3), colour.mix(0.45).filled())
+                    }))
                     .map_err(render_err)?;
             }
         }

@@ -97,6 +97,29 @@ fn check_size((w, h): (u32, u32)) -> Result<(), PlotError> {
     Ok(())
 }
 
+/// PNGs up to this many pixels are drawn at twice their size and averaged down.
+const SUPERSAMPLE_MAX_PIXELS: u64 = 16_000_000;
+
+/// Average 2x2 blocks of an RGB buffer of size `2w x 2h` into `w x h`.
+fn downsample2(big: &[u8], (w, h): (u32, u32)) -> Vec<u8> {
+    let (w, h) = (w as usize, h as usize);
+    let row = 2 * w * 3;
+    let mut out = vec![0u8; w * h * 3];
+    for y in 0..h {
+        let r0 = &big[2 * y * row..(2 * y + 1) * row];
+        let r1 = &big[(2 * y + 1) * row..(2 * y + 2) * row];
+        let o = &mut out[y * w * 3..(y + 1) * w * 3];
+        for x in 0..w {
+            for c in 0..3 {
+                let i = 6 * x + c;
+                let sum = r0[i] as u32 + r0[i + 3] as u32 + r1[i] as u32 + r1[i + 3] as u32;
+                o[3 * x + c] = ((sum + 2) / 4) as u8;
+            }
+        }
+    }
+    out
+}
+
 /// Render `fig` in memory and return the file's bytes.
 pub fn render<F: Figure>(
     fig: &F,
@@ -108,16 +131,28 @@ pub fn render<F: Figure>(
     check_size(size)?;
     match format {
         Format::Png => {
-            let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
+            // draw at twice the size and average 2x2 blocks: anti-aliased lines and text
+            let scale = if size.0 as u64 * size.1 as u64 <= SUPERSAMPLE_MAX_PIXELS {
+                2
+            } else {
+                1
+            };
+            let big = (size.0 * scale, size.1 * scale);
+            let mut buf = vec![255u8; big.0 as usize * big.1 as usize * 3];
             {
-                let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
+                let root = BitMapBackend::with_buffer(&mut buf, big).into_drawing_area();
                 root.fill(&WHITE).map_err(render_err)?;
                 BITMAP.with(|b| b.set(true));
-                let drawn = fig.draw(&root);
+                let drawn = super::style::with_scale(scale, || fig.draw(&root));
                 BITMAP.with(|b| b.set(false));
                 drawn?;
                 root.present().map_err(render_err)?;
             }
+            let buf = if scale == 2 {
+                downsample2(&buf, size)
+            } else {
+                buf
+            };
             let mut png = Vec::new();
             image::codecs::png::PngEncoder::new_with_quality(
                 &mut png,

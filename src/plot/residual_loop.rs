@@ -14,7 +14,7 @@ use super::axes::{self};
 use super::decimate::decimate;
 use super::render::{render_err, save, Figure};
 use super::source::{normalised_loop_area, PlotRecord};
-use super::style::{self, axis_label, fmt_num, Quantity, PANEL};
+use super::style::{self, fmt_num, PANEL};
 use super::PlotError;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -80,7 +80,7 @@ impl Figure for ResidualLoopFigure<'_> {
                 let area = &areas[i * ni + j];
                 let u = &r.io.inputs[j].values;
                 let e = &self.residuals[i];
-                let q = Quantity::from_column(&r.io.outputs[i].name);
+                let q = r.quantity(&r.io.outputs[i].name);
                 let caption = if single {
                     String::new()
                 } else {
@@ -96,21 +96,21 @@ impl Figure for ResidualLoopFigure<'_> {
                     &caption,
                     axes::padded_range(u, 0.04),
                     axes::padded_range(e, 0.06),
-                    &axis_label(&r.io.inputs[j].name),
+                    &r.quantity(&r.io.inputs[j].name).label(),
                     &q.label_with(&format!("residual {}", q.name)),
                 )?;
                 let xr = axes::padded_range(u, 0.04);
                 chart
                     .draw_series(axes::path_elements(
                         vec![(xr.0, 0.0), (xr.1, 0.0)],
-                        BLACK.mix(0.5).stroke_width(1),
+                        BLACK.mix(0.5).stroke_width(style::px(1)),
                     ))
                     .map_err(render_err)?;
                 let idx = decimate(&[u, e], 0..r.len(), 40_000);
                 chart
                     .draw_series(axes::path_elements(
                         idx.iter().map(|&k| (u[k], e[k])).collect::<Vec<_>>(),
-                        style::series_colour(0).stroke_width(style::LINE_WIDTH),
+                        style::series_colour(0).stroke_width(style::px(style::LINE_WIDTH)),
                     ))
                     .map_err(render_err)?;
             }

@@ -3,8 +3,10 @@
 //! measured outputs, `<output>_hat`).
 
 use super::decimate::turning_points;
+use super::style::{unit_display, Quantity};
 use super::PlotError;
 use crate::data::{read_csv, DataError, IoRecord, Record, Signal};
+use crate::metrics::ptp;
 use std::path::Path;
 
 /// A record to plot: inputs, measured outputs and, per output, the model's prediction if any.
@@ -17,6 +19,9 @@ pub struct PlotRecord {
     pub predicted: Vec<Option<Vec<f64>>>,
     /// The record's column names, listed in errors.
     pub columns: Vec<String>,
+    /// Units given by the caller (column, unit), for columns whose names carry none
+    /// (a simulated plant's `u`, `y` with its spec's units).
+    pub units: Vec<(String, String)>,
 }
 
 impl PlotRecord {
@@ -30,6 +35,7 @@ impl PlotRecord {
             predicted: vec![None; io.outputs.len()],
             io,
             columns,
+            units: Vec::new(),
         }
     }
 
@@ -100,6 +106,7 @@ impl PlotRecord {
             io,
             predicted,
             columns: rec.names.clone(),
+            units: Vec::new(),
         })
     }
 
@@ -110,7 +117,40 @@ impl PlotRecord {
         outputs: Option<&[String]>,
     ) -> Result<PlotRecord, PlotError> {
         let rec = read_csv(path)?;
-        PlotRecord::from_record(&rec, inputs, outputs)
+        let r = PlotRecord::from_record(&rec, inputs, outputs)?;
+        Ok(match sidecar_units(path) {
+            Some((i, o)) => r.with_units(&i, &o),
+            None => r,
+        })
+    }
+
+    /// Give every input the unit `input` and every output the unit `output` (empty: none),
+    /// e.g. from a plant spec's units; used in axis labels.
+    pub fn with_units(mut self, input: &str, output: &str) -> PlotRecord {
+        for s in &self.io.inputs {
+            if !input.is_empty() {
+                self.units.push((s.name.clone(), unit_display(input)));
+            }
+        }
+        for s in &self.io.outputs {
+            if !output.is_empty() {
+                self.units.push((s.name.clone(), unit_display(output)));
+            }
+        }
+        self
+    }
+
+    /// The quantity and unit of a column: a unit given with [`PlotRecord::with_units`], else
+    /// the one its name carries (`voltage_V`).
+    pub fn quantity(&self, column: &str) -> Quantity {
+        let base = column.strip_suffix("_hat").unwrap_or(column);
+        match self.units.iter().find(|(c, _)| c == base) {
+            Some((_, u)) => Quantity {
+                name: base.to_string(),
+                unit: Some(u.clone()),
+            },
+            None => Quantity::from_column(column),
+        }
     }
 
     /// Number of samples.
@@ -198,6 +238,7 @@ impl PlotRecord {
                         .map(|p| p.as_ref().map(|p| p[i..j + 1].to_vec()))
                         .collect(),
                     columns: self.columns.clone(),
+                    units: self.units.clone(),
                 })
             }
             _ => Err(PlotError::EmptyWindow {
@@ -216,18 +257,14 @@ pub fn values(s: &Signal) -> &[f64] {
     &s.values
 }
 
-/// Peak to peak.
-pub fn ptp(x: &[f64]) -> f64 {
-    let (lo, hi) = x
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-            (a.min(v), b.max(v))
-        });
-    if hi >= lo {
-        hi - lo
-    } else {
-        0.0
-    }
+/// The plant's units from the JSON sidecar `hystbench simulate` writes beside a record
+/// (`<stem>.json` with `plant.units.input/output`); `None` when there is none or it does not say.
+pub fn sidecar_units(csv: &Path) -> Option<(String, String)> {
+    let text = std::fs::read_to_string(csv.with_extension("json")).ok()?;
+    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
+    let u = v.get("plant")?.get("units")?;
+    let get = |k: &str| u.get(k).and_then(|x| x.as_str()).unwrap_or("").to_string();
+    Some((get("input"), get("output")))
 }
 
 /// Cycle number of every sample: the count of input reversals so far (reversals swinging more
@@ -247,37 +284,19 @@ pub fn cycle_index(x: &[f64]) -> Vec<u32> {
     out
 }
 
-/// Signed area enclosed by the path (x, y), closed from the last point back to the first
-/// (shoelace formula). Counter-clockwise is positive.
-pub fn shoelace_area(x: &[f64], y: &[f64]) -> f64 {
-    let n = x.len().min(y.len());
-    if n < 3 {
-        return 0.0;
-    }
-    let (mx, my) = (
-        x[..n].iter().sum::<f64>() / n as f64,
-        y[..n].iter().sum::<f64>() / n as f64,
-    );
-    let mut a = 0.0;
-    for k in 0..n {
-        let j = (k + 1) % n;
-        a += (x[k] - mx) * (y[j] - my) - (x[j] - mx) * (y[k] - my);
-    }
-    0.5 * a
-}
-
-/// Loop area of (x, y) per cycle of x, normalised by the bounding box `ptp(x) * ptp(y)`:
+/// Loop area of (x, y) per cycle of x (shoelace formula, closed from the last point back to the
+/// first), normalised by the bounding box `ptp(x) * ptp(y)`:
 /// 0 for a single-valued curve, about 0.785 for a circle traced once per cycle.
 /// Returns (normalised area, cycles used).
 pub fn normalised_loop_area(x: &[f64], y: &[f64]) -> (f64, u32) {
-    let bx = ptp(x) * ptp(y);
     // a loop per two reversals, the record's ends counting as half a reversal each
     let reversals = turning_points(x, 0.02 * ptp(x)).len() as u32;
     let cycles = reversals.div_ceil(2).max(1);
-    if bx <= 0.0 {
-        return (0.0, cycles);
-    }
-    (shoelace_area(x, y).abs() / cycles as f64 / bx, cycles)
+    // the whole-record area of `metrics` (what `compare` reports), per cycle
+    (
+        crate::metrics::normalised_loop_area(x, y).abs() / cycles as f64,
+        cycles,
+    )
 }
 
 #[cfg(test)]

@@ -20,7 +20,7 @@
 use super::axes::{self, legend, legend_line};
 use super::render::{render_err, save, Figure};
 use super::source::PlotRecord;
-use super::style::{self, axis_label, FONT, PANEL};
+use super::style::{self, FONT, PANEL};
 use super::PlotError;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -122,32 +122,36 @@ impl Figure for SpectrumFigure<'_> {
                 .fold(amax, |m, &v| if v > floor { m.min(v) } else { m });
             let (f0, f1) = (f[0], f[f.len() - 1]);
             let mut b = ChartBuilder::on(area);
-            b.margin(16)
-                .margin_right(28)
-                .x_label_area_size(70)
-                .y_label_area_size(110);
+            b.margin(style::px(16))
+                .margin_right(style::px(28))
+                .x_label_area_size(style::px(70))
+                .y_label_area_size(style::px(110));
             if r.io.outputs.len() > 1 {
-                b.caption(&r.io.outputs[j].name, (FONT, style::CAPTION_SIZE));
+                b.caption(
+                    &r.io.outputs[j].name,
+                    (FONT, style::px(style::CAPTION_SIZE)),
+                );
             }
             let mut chart = b
                 .build_cartesian_2d((f0..f1).log_scale(), (amin * 0.5..amax * 2.0).log_scale())
                 .map_err(render_err)?;
             chart
                 .configure_mesh()
-                .bold_line_style(style::GRID_MAJOR)
-                .light_line_style(style::GRID_MINOR)
+                .bold_line_style(style::GRID_MAJOR.stroke_width(style::px(1)))
+                .light_line_style(style::GRID_MINOR.stroke_width(style::px(1)))
                 .max_light_lines(4)
-                .axis_style(BLACK)
+                .axis_style(BLACK.stroke_width(style::px(1)))
+                .set_all_tick_mark_size(style::px(6))
                 .x_labels(10)
                 .y_labels(10)
                 .x_label_formatter(&|v| log_tick(*v))
                 .y_label_formatter(&|v| log_tick(*v))
-                .label_style((FONT, style::TICK_SIZE))
-                .axis_desc_style((FONT, style::LABEL_SIZE))
+                .label_style((FONT, style::px(style::TICK_SIZE)))
+                .axis_desc_style((FONT, style::px(style::LABEL_SIZE)))
                 .x_desc("frequency [Hz]")
                 .y_desc(format!(
                     "amplitude of {}",
-                    axis_label(&r.io.outputs[j].name)
+                    r.quantity(&r.io.outputs[j].name).label()
                 ))
                 .draw()
                 .map_err(render_err)?;
@@ -159,7 +163,7 @@ impl Figure for SpectrumFigure<'_> {
                         idx.iter()
                             .map(|&k| (f[k], a[k].max(floor)))
                             .collect::<Vec<_>>(),
-                        colour.stroke_width(style::LINE_WIDTH),
+                        colour.stroke_width(style::px(style::LINE_WIDTH)),
                     ))
                     .map_err(render_err)?
                     .label(name.as_str())

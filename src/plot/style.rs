@@ -7,6 +7,29 @@
 
 use plotters::style::RGBColor;
 
+thread_local! {
+    static SCALE: std::cell::Cell<u32> = const { std::cell::Cell::new(1) };
+}
+
+/// A length in figure pixels converted to drawing pixels: PNGs are drawn at twice their size and
+/// averaged down (anti-aliasing), so every fixed length in the figures goes through this.
+pub fn px(v: u32) -> u32 {
+    v * SCALE.with(|s| s.get())
+}
+
+/// [`px`] for signed offsets.
+pub fn pxi(v: i32) -> i32 {
+    v * SCALE.with(|s| s.get()) as i32
+}
+
+/// Run `f` with lengths scaled by `scale`.
+pub(crate) fn with_scale<T>(scale: u32, f: impl FnOnce() -> T) -> T {
+    let old = SCALE.with(|s| s.replace(scale));
+    let out = f();
+    SCALE.with(|s| s.set(old));
+    out
+}
+
 /// Default size of one panel in pixels.
 pub const PANEL: (u32, u32) = (900, 680);
 /// Font family (the embedded DejaVu Sans is registered under it).
@@ -109,6 +132,14 @@ const UNITS: &[(&str, &str)] = &[
     ("mps2", "m/s²"),
     ("g", "g"),
 ];
+
+/// How a unit prints: `um` -> "µm", `deg` -> "°"; unknown units as given.
+pub fn unit_display(unit: &str) -> String {
+    UNITS
+        .iter()
+        .find(|(u, _)| *u == unit)
+        .map_or(unit.to_string(), |(_, shown)| (*shown).to_string())
+}
 
 /// A column name split into a quantity and its unit: `displacement_um` -> ("displacement", "µm").
 #[derive(Debug, Clone, PartialEq)]

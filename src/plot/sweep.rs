@@ -238,7 +238,7 @@ impl Figure for SweepFigure {
             .unwrap_or_else(|| "NARX sweep: free-run test R² over lags and neurons".to_string());
         let body = axes::titled(root, &title)?;
         let w = body.dim_in_pixel().0;
-        let (main, bar) = body.split_horizontally(w.saturating_sub(170));
+        let (main, bar) = body.split_horizontally(w.saturating_sub(style::px(170)));
         let (lo, hi) = self.colour_range();
         colour_bar(&bar, lo, hi, "free-run test R²")?;
         let (cols, rows) = self.panels();
@@ -251,19 +251,21 @@ impl Figure for SweepFigure {
                     let area = &areas[a];
                     a += 1;
                     let (pw, ph) = area.dim_in_pixel();
-                    let cell_w = (pw.saturating_sub(150)) / nx.max(1) as u32;
-                    let cell_h = (ph.saturating_sub(160)) / ny.max(1) as u32;
-                    let text_size = (cell_w / 5).min(cell_h / 3).clamp(10, 22);
+                    let cell_w = (pw.saturating_sub(style::px(150))) / nx.max(1) as u32;
+                    let cell_h = (ph.saturating_sub(style::px(160))) / ny.max(1) as u32;
+                    let text_size = (cell_w / 5)
+                        .min(cell_h / 3)
+                        .clamp(style::px(10), style::px(22));
                     let mut caption = format!("lr = {}, batch = {batch}", lr_label(lr));
                     if self.outputs.len() > 1 {
                         caption = format!("{out}: {caption}");
                     }
                     let mut chart = ChartBuilder::on(area)
-                        .margin(16)
-                        .margin_right(24)
-                        .caption(caption, (FONT, style::CAPTION_SIZE))
-                        .x_label_area_size(70)
-                        .y_label_area_size(90)
+                        .margin(style::px(16))
+                        .margin_right(style::px(24))
+                        .caption(caption, (FONT, style::px(style::CAPTION_SIZE)))
+                        .x_label_area_size(style::px(70))
+                        .y_label_area_size(style::px(90))
                         .build_cartesian_2d(
                             (0..nx as i32 - 1).into_segmented(),
                             (0..ny as i32 - 1).into_segmented(),
@@ -286,13 +288,14 @@ impl Figure for SweepFigure {
                     chart
                         .configure_mesh()
                         .disable_mesh()
-                        .axis_style(BLACK)
+                        .axis_style(BLACK.stroke_width(style::px(1)))
+                        .set_all_tick_mark_size(style::px(6))
                         .x_labels(nx + 1)
                         .y_labels(ny + 1)
                         .x_label_formatter(&xf)
                         .y_label_formatter(&yf)
-                        .label_style((FONT, style::TICK_SIZE))
-                        .axis_desc_style((FONT, style::LABEL_SIZE))
+                        .label_style((FONT, style::px(style::TICK_SIZE)))
+                        .axis_desc_style((FONT, style::px(style::LABEL_SIZE)))
                         .x_desc("lags")
                         .y_desc("neurons")
                         .draw()
@@ -344,7 +347,7 @@ impl Figure for SweepFigure {
                                             SegmentValue::Exact(iy as i32 + 1),
                                         ),
                                     ],
-                                    WHITE.stroke_width(2),
+                                    WHITE.stroke_width(style::px(2)),
                                 )))
                                 .map_err(render_err)?;
                             let light = (fill.0 as u32 + fill.1 as u32 + fill.2 as u32) > 3 * 150;
@@ -357,7 +360,7 @@ impl Figure for SweepFigure {
                                 .into_font()
                                 .color(&tc)
                                 .pos(Pos::new(HPos::Center, VPos::Center));
-                            let st2 = (FONT, (text_size * 3 / 4).max(10))
+                            let st2 = (FONT, (text_size * 3 / 4).max(style::px(10)))
                                 .into_font()
                                 .color(&tc)
                                 .pos(Pos::new(HPos::Center, VPos::Center));

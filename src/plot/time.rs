@@ -9,7 +9,7 @@ use super::axes::{self, legend, legend_line};
 use super::decimate::decimate;
 use super::render::{render_err, save, Figure};
 use super::source::PlotRecord;
-use super::style::{self, axis_label, time_label, Quantity};
+use super::style::{self, time_label};
 use super::PlotError;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -96,7 +96,7 @@ impl Figure for TimeFigure<'_> {
             let ylabel = match panel {
                 Panel::Signal { name, values } => {
                     series.push((name.clone(), values, style::series_colour(0)));
-                    axis_label(name)
+                    r.quantity(name).label()
                 }
                 Panel::Fit { j } => {
                     let s = &r.io.outputs[*j];
@@ -104,12 +104,12 @@ impl Figure for TimeFigure<'_> {
                     if let Some(p) = &r.predicted[*j] {
                         series.push(("model".into(), p, style::series_colour(1)));
                     }
-                    axis_label(&s.name)
+                    r.quantity(&s.name).label()
                 }
                 Panel::Residual { j } => {
                     residual = r.residual(*j).unwrap_or_default();
                     series.push(("residual".into(), &residual, style::series_colour(2)));
-                    let q = Quantity::from_column(&r.io.outputs[*j].name);
+                    let q = r.quantity(&r.io.outputs[*j].name);
                     q.label_with(&format!("residual {}", q.name))
                 }
             };
@@ -117,12 +117,15 @@ impl Figure for TimeFigure<'_> {
             for (_, v, _) in &series {
                 yr = axes::union(yr, axes::padded_range(*v, 0.05));
             }
-            let mut chart = axes::chart(area, "", xr, yr, &tl, &ylabel)?;
+            // the time axis is described once, under the bottom panel
+            let last = std::ptr::eq(panel, panels.last().unwrap_or(panel));
+            let xl = if last { tl.as_str() } else { "" };
+            let mut chart = axes::chart(area, "", xr, yr, xl, &ylabel)?;
             if matches!(panel, Panel::Residual { .. }) {
                 chart
                     .draw_series(axes::path_elements(
                         vec![(xr.0, 0.0), (xr.1, 0.0)],
-                        BLACK.mix(0.5).stroke_width(1),
+                        BLACK.mix(0.5).stroke_width(style::px(1)),
                     ))
                     .map_err(render_err)?;
             }
@@ -132,7 +135,7 @@ impl Figure for TimeFigure<'_> {
                 chart
                     .draw_series(axes::path_elements(
                         idx.iter().map(|&k| (t[k], v[k])).collect::<Vec<_>>(),
-                        c.stroke_width(style::LINE_WIDTH),
+                        c.stroke_width(style::px(style::LINE_WIDTH)),
                     ))
                     .map_err(render_err)?
                     .label(name.as_str())
