@@ -111,6 +111,66 @@ impl Model for Plant {
     }
 }
 
+impl Model for crate::graybox::FittedGreyBox {
+    fn describe(&self) -> String {
+        format!(
+            "grey-box model ({})",
+            self.effects
+                .iter()
+                .map(|e| e.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    }
+    fn input_names(&self) -> Vec<String> {
+        self.inputs().to_vec()
+    }
+    fn output_names(&self) -> Vec<String> {
+        self.outputs().to_vec()
+    }
+    fn effects(&self) -> Vec<EffectName> {
+        self.effects.clone()
+    }
+    fn predict(&self, rec: &IoRecord) -> Result<Vec<Vec<f64>>, ModelError> {
+        self.simulate(rec)
+            .map_err(|e| ModelError::Other(e.to_string()))
+    }
+}
+
+impl Model for crate::narx::FittedNarx {
+    fn describe(&self) -> String {
+        format!(
+            "NARX model ({} lags, {} neurons)",
+            self.config.lags.start(),
+            self.config.neurons
+        )
+    }
+    fn input_names(&self) -> Vec<String> {
+        self.config.inputs.clone()
+    }
+    fn output_names(&self) -> Vec<String> {
+        self.config.outputs.clone()
+    }
+    fn effects(&self) -> Vec<EffectName> {
+        Vec::new()
+    }
+    /// Free run from the record's first measured outputs (the model's initial condition).
+    fn predict(&self, rec: &IoRecord) -> Result<Vec<Vec<f64>>, ModelError> {
+        let preds = crate::narx::FittedNarx::predict(self, rec, crate::narx::Mode::FreeRun)
+            .map_err(|e| ModelError::Other(e.to_string()))?;
+        preds
+            .into_iter()
+            .map(|p| match p.diverged_at {
+                Some(k) => Err(ModelError::Other(format!(
+                    "the free run of `{}` diverged at sample {k} (it left the training range by 5 ranges)",
+                    p.name
+                ))),
+                None => Ok(p.values),
+            })
+            .collect()
+    }
+}
+
 /// Read a model file: a plant file, or a model file with a `format` field.
 pub fn load_model(path: &Path) -> Result<Box<dyn Model>, ModelError> {
     let text = std::fs::read_to_string(path).map_err(|source| ModelError::Read {
@@ -123,10 +183,22 @@ pub fn load_model(path: &Path) -> Result<Box<dyn Model>, ModelError> {
     })?;
     match v.get("format").and_then(|f| f.as_str()) {
         None => Ok(Box::new(PlantSpec::parse(path, &text)?.check(path)?)),
+        Some(crate::graybox::FORMAT) => Ok(Box::new(
+            crate::graybox::FittedGreyBox::parse(path, &text)
+                .map_err(|e| ModelError::Other(e.to_string()))?,
+        )),
+        Some(crate::narx::model::FORMAT) => Ok(Box::new(
+            crate::narx::FittedNarx::from_json(path, &text)
+                .map_err(|e| ModelError::Other(e.to_string()))?,
+        )),
         Some(other) => Err(ModelError::UnknownFormat {
             path: path.to_path_buf(),
             found: other.to_string(),
-            known: "a plant file (no `format`)".into(),
+            known: format!(
+                "{}, {}, or a plant file (no `format`)",
+                crate::graybox::FORMAT,
+                crate::narx::model::FORMAT
+            ),
         }),
     }
 }

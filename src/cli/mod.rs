@@ -10,6 +10,7 @@ pub mod demo;
 pub mod diagnose;
 pub mod fit;
 pub mod identify;
+pub mod improve;
 pub mod plot;
 pub mod predict;
 pub mod simulate;
@@ -42,6 +43,8 @@ pub enum Command {
     Compare(compare::Args),
     /// Which physical effect does the model miss?
     Diagnose(diagnose::Args),
+    /// Diagnose, add the missing effect, refit, repeat: the ladder of errors.
+    Improve(improve::Args),
     /// Draw a figure (PNG or SVG): loop, time, residual-loop, parity, spectrum, sweep, ladder.
     Plot(plot::PlotArgs),
 }
@@ -68,6 +71,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Fit(a) => fit::run(a),
         Command::Compare(a) => compare::run(a),
         Command::Diagnose(a) => diagnose::run(a),
+        Command::Improve(a) => improve::run(a),
         Command::Plot(a) => plot::run(a),
     }
 }

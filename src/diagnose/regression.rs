@@ -11,8 +11,14 @@ pub fn fit(
     fit: std::ops::Range<usize>,
     intercept: bool,
 ) -> Option<Vec<f64>> {
+    let rows: Vec<usize> = fit.collect();
+    fit_rows(cols, y, &rows, intercept)
+}
+
+/// [`fit`] on an arbitrary set of rows.
+pub fn fit_rows(cols: &[&[f64]], y: &[f64], rows: &[usize], intercept: bool) -> Option<Vec<f64>> {
     let p = cols.len() + intercept as usize;
-    let n = fit.len();
+    let n = rows.len();
     if n <= p || p == 0 {
         return None;
     }
@@ -20,7 +26,8 @@ pub fn fit(
     let scale: Vec<f64> = cols
         .iter()
         .map(|c| {
-            let s = crate::metrics::std_dev(&c[fit.clone()]);
+            let v: Vec<f64> = rows.iter().map(|&k| c[k]).collect();
+            let s = crate::metrics::std_dev(&v);
             if s > 0.0 {
                 s
             } else {
@@ -31,7 +38,7 @@ pub fn fit(
     let mut g = DMatrix::<f64>::zeros(p, p);
     let mut b = DVector::<f64>::zeros(p);
     let mut row = vec![0.0; p];
-    for k in fit {
+    for &k in rows {
         for (j, c) in cols.iter().enumerate() {
             row[j] = c[k] / scale[j];
         }
@@ -82,22 +89,29 @@ pub struct Explained {
     pub rms_with_bank: f64,
 }
 
-/// Two-fold contiguous cross-validation: fit on one half, score on the other, and the reverse;
-/// sums of squares are pooled. The baseline (e.g. the prediction and a constant) is always in.
+/// Number of contiguous blocks of the two-fold cross-validation.
+pub const BLOCKS: usize = 8;
+
+/// Two-fold blocked cross-validation: the record is cut in [`BLOCKS`] contiguous blocks, the
+/// even ones fit and the odd ones score, then the reverse; sums of squares are pooled. Blocks
+/// keep the time structure while both folds see the whole experiment (a record that starts with
+/// a rest and ends with motion is fitted on both). The baseline (e.g. the prediction and a
+/// constant) is always in.
 pub fn explained_out_of_sample(
     residual: &[f64],
     baseline: &[&[f64]],
     bank: &[&[f64]],
 ) -> Option<Explained> {
     let n = residual.len();
-    let h = n / 2;
-    let folds = [(0..h, h..n), (h..n, 0..h)];
+    let block = |k: usize| (k * BLOCKS / n.max(1)) % 2;
+    let even: Vec<usize> = (0..n).filter(|&k| block(k) == 0).collect();
+    let odd: Vec<usize> = (0..n).filter(|&k| block(k) == 1).collect();
     let full: Vec<&[f64]> = baseline.iter().chain(bank).copied().collect();
     let (mut sse_base, mut sse_full, mut count) = (0.0, 0.0, 0usize);
-    for (train, test) in folds {
-        let cb = fit(baseline, residual, train.clone(), true)?;
-        let cf = fit(&full, residual, train, true)?;
-        for k in test {
+    for (train, test) in [(&even, &odd), (&odd, &even)] {
+        let cb = fit_rows(baseline, residual, train, true)?;
+        let cf = fit_rows(&full, residual, train, true)?;
+        for &k in test {
             let eb = residual[k] - predict_at(baseline, &cb, k);
             let ef = residual[k] - predict_at(&full, &cf, k);
             sse_base += eb * eb;

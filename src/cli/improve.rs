@@ -1,0 +1,215 @@
+//! `hystbench improve`: the model-improvement loop. Diagnose the model against the record, add
+//! the effect the diagnosis names, refit, and repeat until nothing significant is missing;
+//! print and plot the ladder of errors.
+
+use crate::cli::compare::{predict_record, write_figures};
+use crate::data::read_csv;
+use crate::diagnose::{diagnose, unit_of, DiagnoseOptions};
+use crate::effect::EffectName;
+use crate::graybox::{FittedGreyBox, GreyBoxConfig};
+use crate::model::{load_model, plant_effects, Model};
+use crate::plant::Plant;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Diagnose, add the missing effect, refit, repeat; write the ladder of errors.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The record (CSV with the model's input and output columns).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// The starting model: a grey-box model file or a plant file.
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Report folder: ladder.csv, ladder.png, report.md, the model of each step, figures.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// At most this many effects are added.
+    #[arg(long, default_value_t = 4)]
+    pub max_steps: usize,
+    /// Write into an existing folder that hystbench did not make.
+    #[arg(long)]
+    pub force: bool,
+    /// Print the ladder as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// One rung of the ladder.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Rung {
+    pub step: usize,
+    pub effects: Vec<EffectName>,
+    /// Mean over outputs.
+    pub rmse: f64,
+    pub r2: Option<f64>,
+    /// The diagnosis of this model: what it says is missing.
+    pub missing: Option<EffectName>,
+    /// Its prediction of the RMS error once the effect is added.
+    pub predicted_rmse: Option<f64>,
+    pub model_file: String,
+}
+
+fn effect_list(effects: &[EffectName]) -> String {
+    if effects.is_empty() {
+        "none".to_string()
+    } else {
+        effects
+            .iter()
+            .map(|e| e.as_str())
+            .collect::<Vec<_>>()
+            .join(",")
+    }
+}
+
+/// The grey-box configuration that reproduces a starting model's structure.
+fn start_config(path: &Path) -> anyhow::Result<GreyBoxConfig> {
+    if let Ok(m) = FittedGreyBox::load(path) {
+        return Ok(m.config());
+    }
+    match Plant::from_file(path) {
+        Ok(p) => Ok(GreyBoxConfig::from_effect_list(&effect_list(&plant_effects(&p)))?),
+        Err(_) => anyhow::bail!(
+            "{}: `improve` adds effects to grey-box models (made by `hystbench fit`) and plant files; for a NARX model, add an effect's basis signals with `hystbench identify --features <effect>`",
+            path.display()
+        ),
+    }
+}
+
+fn mean_scores(
+    model: &dyn Model,
+    data: &Path,
+) -> anyhow::Result<(f64, Option<f64>, crate::data::IoRecord, Vec<Vec<f64>>)> {
+    let (io, pred) = predict_record(data, model)?;
+    let sc: Vec<_> = io
+        .outputs
+        .iter()
+        .zip(&pred)
+        .map(|(y, p)| crate::metrics::scores(&y.values, p))
+        .collect();
+    let n = sc.len().max(1) as f64;
+    let rmse = sc.iter().map(|s| s.rmse).sum::<f64>() / n;
+    let r2 = sc.iter().map(|s| s.r2).sum::<Option<f64>>().map(|s| s / n);
+    Ok((rmse, r2, io, pred))
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let mut config = start_config(&a.model)?;
+    crate::cli::demo::prepare_report_folder(&a.out, a.force)?;
+    let mut model: Box<dyn Model> = load_model(&a.model)?;
+    let rec = read_csv(&a.data)?;
+    let io_all = model.select(&rec)?;
+    let opts = DiagnoseOptions::default();
+    let mut rungs: Vec<Rung> = Vec::new();
+    let mut model_file = a.model.display().to_string();
+    let mut last = None;
+    for step in 0..=a.max_steps {
+        let (rmse, r2, io, pred) = mean_scores(model.as_ref(), &a.data)?;
+        let d = diagnose(&io, &pred, &model.effects(), &opts);
+        let predicted = d
+            .ranking
+            .first()
+            .filter(|r| Some(r.effect) == d.missing)
+            .map(|r| r.rms_after);
+        eprintln!(
+            "step {step}: {} | RMS error {rmse:.4} | R^2 {} | missing: {}",
+            effect_list(&model.effects()),
+            r2.map_or("undefined".into(), |v| format!("{v:.5}")),
+            d.missing
+                .map_or("nothing significant".into(), |m| m.to_string())
+        );
+        rungs.push(Rung {
+            step,
+            effects: model.effects(),
+            rmse,
+            r2,
+            missing: d.missing,
+            predicted_rmse: predicted,
+            model_file: model_file.clone(),
+        });
+        last = Some((io, pred));
+        if let Some(prev) = rungs.len().checked_sub(2).map(|i| rungs[i].rmse) {
+            if rmse >= prev {
+                eprintln!("the error did not fall with the added effect; stopping");
+                break;
+            }
+        }
+        let Some(effect) = d.missing else { break };
+        if step == a.max_steps {
+            break;
+        }
+        config = config.with_effect(effect);
+        eprintln!("fitting {} ...", config.effect_list());
+        let fitted = config.fit(&io_all)?;
+        let name = format!("model_{}.json", step + 1);
+        fitted.save(&a.out.join(&name), true)?;
+        model_file = a.out.join(&name).display().to_string();
+        model = Box::new(fitted);
+    }
+    // ladder.csv and figures
+    let mut csv = String::from("step,effects,rmse,r2\n");
+    for r in &rungs {
+        let eff = if r.effects.is_empty() {
+            "linear".to_string()
+        } else {
+            r.effects
+                .iter()
+                .map(|e| e.as_str())
+                .collect::<Vec<_>>()
+                .join("+")
+        };
+        let _ = writeln!(
+            csv,
+            "{},{eff},{},{}",
+            r.step,
+            r.rmse,
+            r.r2.map_or(String::new(), |v| v.to_string())
+        );
+    }
+    let ladder = a.out.join("ladder.csv");
+    crate::data::write_atomic(&ladder, csv.as_bytes(), true)?;
+    crate::plot::ladder_figure(
+        &ladder,
+        Some("Model improvement: free-run RMS error per step".into()),
+        &a.out.join("ladder.png"),
+        None,
+        true,
+    )?;
+    let (io, pred) = last.expect("at least one step");
+    let figures = write_figures(&a.out, &io, &pred)?;
+    let unit = io
+        .outputs
+        .first()
+        .map(|s| unit_of(&s.name))
+        .unwrap_or_default();
+    let mut md = format!("# Model improvement on {}\n\n", a.data.display());
+    md += "| step | effects | RMS error | R^2 | diagnosis: missing | predicted RMS with it |\n|---|---|---|---|---|---|\n";
+    for r in &rungs {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.4} {unit} | {} | {} | {} |",
+            r.step,
+            effect_list(&r.effects),
+            r.rmse,
+            r.r2.map_or("undefined".into(), |v| format!("{v:.5}")),
+            r.missing
+                .map_or("nothing significant".into(), |m| m.to_string()),
+            r.predicted_rmse
+                .map_or("".into(), |v| format!("{v:.4} {unit}"))
+        );
+    }
+    md += "\n![ladder](ladder.png)\n\n";
+    for f in figures {
+        md += &format!("![{f}]({f})\n\n");
+    }
+    crate::data::write_atomic(&a.out.join("report.md"), md.as_bytes(), true)?;
+    if a.json {
+        crate::cli::print(&serde_json::to_string(
+            &serde_json::json!({ "ladder": rungs }),
+        )?);
+    } else {
+        crate::cli::print(&md);
+        crate::cli::print(&format!("report: {}", a.out.join("report.md").display()));
+    }
+    Ok(())
+}
