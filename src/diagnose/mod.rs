@@ -8,10 +8,13 @@
 //! also tested for whiteness (auto-, cross- and higher-order correlations), so that "nothing
 //! significant is missing" is a possible answer.
 //!
+//! The banks of the effects the model already has join the baseline when a missing effect is
+//! scored: what a missing effect's bank explains is what the present effects, even refitted,
+//! could not (a misfit of a present effect is not taken for a missing one).
+//!
 //! Decision rule: the top effect the model lacks is called missing when the residual is not
-//! white, its bank explains at least [`DiagnoseOptions::threshold`] of the residual out of sample,
-//! and it explains clearly more (by [`DiagnoseOptions::margin`]) than the banks of the effects the
-//! model already has (those would mean a misfit of present effects, not a missing one).
+//! white and its bank explains at least [`DiagnoseOptions::threshold`] of the residual out of
+//! sample.
 //!
 //! ## References
 //! - S. A. Billings, W. S. F. Voon, Int. J. Control 44(1):235-244, 1986.
@@ -34,8 +37,6 @@ pub use whiteness::{whiteness, Whiteness};
 pub struct DiagnoseOptions {
     /// Share of the residual a bank must explain out of sample to call its effect missing.
     pub threshold: f64,
-    /// How much more than the present effects' banks it must explain.
-    pub margin: f64,
     /// Lags of the correlation tests.
     pub max_lag: usize,
 }
@@ -43,8 +44,7 @@ pub struct DiagnoseOptions {
 impl Default for DiagnoseOptions {
     fn default() -> Self {
         DiagnoseOptions {
-            threshold: 0.5,
-            margin: 0.15,
+            threshold: 0.3,
             max_lag: 30,
         }
     }
@@ -131,39 +131,43 @@ pub fn diagnose(
             prediction: yhat,
             ts: rec.ts,
         };
+        let banks: Vec<_> = EffectName::ALL
+            .into_iter()
+            .filter_map(|effect| basis_bank(effect, &ctx))
+            .filter(|b| !b.signals.is_empty())
+            .collect();
+        // the baseline: the prediction and the banks of the effects the model has, so that a
+        // misfit of a present effect is not taken for a missing one
+        let mut baseline: Vec<&[f64]> = vec![yhat.as_slice()];
+        for b in banks.iter().filter(|b| model_effects.contains(&b.effect)) {
+            baseline.extend(b.signals.iter().map(Vec::as_slice));
+        }
         let mut scores = Vec::new();
-        for effect in EffectName::ALL {
-            let Some(bank) = basis_bank(effect, &ctx) else {
-                continue;
-            };
-            if bank.signals.is_empty() {
-                continue;
-            }
+        for bank in &banks {
+            let in_model = model_effects.contains(&bank.effect);
             let cols: Vec<&[f64]> = bank.signals.iter().map(Vec::as_slice).collect();
-            if let Some(x) = regression::explained_out_of_sample(&e, &[yhat], &cols) {
+            // a present effect is scored alone (how much of the residual is its misfit);
+            // a missing one on top of the present ones
+            let base: &[&[f64]] = if in_model {
+                &[yhat.as_slice()]
+            } else {
+                &baseline
+            };
+            if let Some(x) = regression::explained_out_of_sample(&e, base, &cols) {
                 scores.push(EffectScore {
-                    effect,
+                    effect: bank.effect,
                     explained: x.fraction,
                     rms_now: x.rms_baseline,
                     rms_after: x.rms_with_bank,
-                    in_model: model_effects.contains(&effect),
+                    in_model,
                 });
             }
         }
         scores.sort_by(|a, b| b.explained.total_cmp(&a.explained));
         let w = whiteness(&e, &named, opts.max_lag);
-        let present_best = scores
-            .iter()
-            .filter(|s| s.in_model)
-            .map(|s| s.explained)
-            .fold(f64::NEG_INFINITY, f64::max);
         let top = scores.iter().find(|s| !s.in_model);
         let missing = top
-            .filter(|s| {
-                !w.white
-                    && s.explained >= opts.threshold
-                    && s.explained >= present_best + opts.margin
-            })
+            .filter(|s| !w.white && s.explained >= opts.threshold)
             .map(|s| s.effect);
         let unit = unit_of(&y.name);
         let mut messages = Vec::new();
