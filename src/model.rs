@@ -113,6 +113,9 @@ impl Model for Plant {
 
 impl Model for crate::graybox::FittedGreyBox {
     fn describe(&self) -> String {
+        if self.effects.is_empty() {
+            return "grey-box model (linear, no effects)".to_string();
+        }
         format!(
             "grey-box model ({})",
             self.effects

@@ -76,10 +76,15 @@ fn start_config(path: &Path) -> anyhow::Result<GreyBoxConfig> {
     }
 }
 
-fn mean_scores(
-    model: &dyn Model,
-    data: &Path,
-) -> anyhow::Result<(f64, Option<f64>, crate::data::IoRecord, Vec<Vec<f64>>)> {
+/// A model's prediction of a record and its mean scores over the outputs.
+struct Evaluated {
+    rmse: f64,
+    r2: Option<f64>,
+    io: crate::data::IoRecord,
+    pred: Vec<Vec<f64>>,
+}
+
+fn mean_scores(model: &dyn Model, data: &Path) -> anyhow::Result<Evaluated> {
     let (io, pred) = predict_record(data, model)?;
     let sc: Vec<_> = io
         .outputs
@@ -90,7 +95,7 @@ fn mean_scores(
     let n = sc.len().max(1) as f64;
     let rmse = sc.iter().map(|s| s.rmse).sum::<f64>() / n;
     let r2 = sc.iter().map(|s| s.r2).sum::<Option<f64>>().map(|s| s / n);
-    Ok((rmse, r2, io, pred))
+    Ok(Evaluated { rmse, r2, io, pred })
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -104,7 +109,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut model_file = a.model.display().to_string();
     let mut last = None;
     for step in 0..=a.max_steps {
-        let (rmse, r2, io, pred) = mean_scores(model.as_ref(), &a.data)?;
+        let Evaluated { rmse, r2, io, pred } = mean_scores(model.as_ref(), &a.data)?;
         let d = diagnose(&io, &pred, &model.effects(), &opts);
         let predicted = d
             .ranking

@@ -254,13 +254,21 @@ fn describe(
     unit: &str,
 ) -> String {
     let u = &rec.inputs[direct].values;
-    let change = format!(
-        "adding {} should bring the RMS error from {:.3} to about {:.3} {unit} ({:.0} % of the residual explained out of sample)",
-        s.effect,
-        s.rms_now,
-        s.rms_after,
-        100.0 * s.explained.max(0.0)
-    );
+    if s.explained < 0.05 {
+        return format!(
+            "{}: no evidence in this record: its basis explains none of the residual out of sample",
+            s.effect
+        );
+    }
+    let change = {
+        format!(
+            "adding {} should bring the RMS error from {:.3} to about {:.3} {unit} ({:.0} % of the residual explained out of sample)",
+            s.effect,
+            s.rms_now,
+            s.rms_after,
+            100.0 * s.explained
+        )
+    };
     let evidence = match s.effect {
         EffectName::Hysteresis => format!(
             "the error forms a loop against {} (branch gap {:.1} % of the error's range)",
