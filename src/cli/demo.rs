@@ -89,6 +89,72 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     md += "\nLoops: `records/<plant>_loop.png`.\n";
     md += "\nHysteresis width: largest gap between the falling and rising branches over 40 input bins, in % of the output range.\n";
+
+    eprintln!("2. identifying them with the NARX network (default protocol, first half trains, second half tests)");
+    md += "\n## 2. Identification: NARX free run on the test half\n\n";
+    md += "| record | output | one-step R^2 (test) | free-run R^2 (test) | target | met | train time |\n|---|---|---|---|---|---|---|\n";
+    for (name, target) in [
+        ("bouc_wen_piezo", 0.999),
+        ("prandtl_ishlinskii_piezo", 0.999),
+        ("prandtl_ishlinskii_asymmetric", 0.999),
+        ("piezo_2dof", 0.99),
+    ] {
+        let rec = crate::data::read_csv(&records.join(format!("{name}.csv")))?;
+        let io = crate::data::IoRecord::from_record(&rec, None, None, true)?;
+        let (train, test) = io.split_halves();
+        let t = std::time::Instant::now();
+        let model =
+            crate::narx::NarxConfig::new(io.input_names(), io.output_names()).fit(&train)?;
+        let secs = t.elapsed().as_secs_f64();
+        for ev in model.evaluate(&train, &test)? {
+            let fr = ev.r2_fr_test;
+            let _ = writeln!(
+                md,
+                "| {name} | {} | {} | {} | {target} | {} | {secs:.1} s |",
+                ev.name,
+                ev.r2_osa_test
+                    .map_or("undefined".into(), |v| format!("{v:.6}")),
+                match (fr, ev.diverged_at_test) {
+                    (_, Some(k)) => format!("diverged at sample {k}"),
+                    (Some(v), None) => format!("{v:.5}"),
+                    (None, None) => "undefined".into(),
+                },
+                if fr.is_some_and(|v| v >= target) {
+                    "yes"
+                } else {
+                    "no"
+                },
+            );
+        }
+    }
+
+    eprintln!("3. a record with a hidden effect: compare, diagnose, add it, watch the error fall");
+    md += "\n## 3. A hidden effect: diagnose, add, watch the error fall\n\n";
+    let hidden = records.join("hidden_creep_piezo.csv");
+    let rec = crate::data::read_csv(&hidden)?;
+    let io = crate::data::IoRecord::from_record(&rec, None, None, true)?;
+    let start = crate::graybox::GreyBoxConfig::from_effect_list("hysteresis,dynamics")?.fit(&io)?;
+    let start_file = a.out.join("hidden_start_model.json");
+    start.save(&start_file, true)?;
+    let improve_dir = a.out.join("improve");
+    md += "The record `records/hidden_creep_piezo.csv` comes from a plant with creep; the starting model is a grey-box fit with hysteresis and dynamics only (`hidden_start_model.json`). `hystbench improve` then diagnoses it, adds what is missing and refits:\n\n";
+    crate::cli::improve::run(crate::cli::improve::Args {
+        data: hidden,
+        model: start_file,
+        out: improve_dir.clone(),
+        max_steps: 3,
+        force: true,
+        json: false,
+        quiet: true,
+    })?;
+    let ladder = std::fs::read_to_string(improve_dir.join("report.md"))?;
+    let table: String = ladder
+        .lines()
+        .filter(|l| l.starts_with('|'))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    md += &table;
+    md += "\n![ladder](improve/ladder.png)\n\nFull report: `improve/report.md`.\n";
     let _ = writeln!(
         md,
         "\nMade by `hystbench demo` {} in {:.1} s.",

@@ -33,6 +33,9 @@ pub struct Args {
     /// Print the ladder as one JSON object.
     #[arg(long)]
     pub json: bool,
+    /// Print nothing but errors (the report is still written).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// One rung of the ladder.
@@ -116,13 +119,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .first()
             .filter(|r| Some(r.effect) == d.missing)
             .map(|r| r.rms_after);
-        eprintln!(
-            "step {step}: {} | RMS error {rmse:.4} | R^2 {} | missing: {}",
-            effect_list(&model.effects()),
-            r2.map_or("undefined".into(), |v| format!("{v:.5}")),
-            d.missing
-                .map_or("nothing significant".into(), |m| m.to_string())
-        );
+        if !a.quiet {
+            eprintln!(
+                "step {step}: {} | RMS error {rmse:.4} | R^2 {} | missing: {}",
+                effect_list(&model.effects()),
+                r2.map_or("undefined".into(), |v| format!("{v:.5}")),
+                d.missing
+                    .map_or("nothing significant".into(), |m| m.to_string())
+            );
+        }
         rungs.push(Rung {
             step,
             effects: model.effects(),
@@ -144,7 +149,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             break;
         }
         config = config.with_effect(effect);
-        eprintln!("fitting {} ...", config.effect_list());
+        if !a.quiet {
+            eprintln!("fitting {} ...", config.effect_list());
+        }
         let fitted = config.fit(&io_all)?;
         let name = format!("model_{}.json", step + 1);
         fitted.save(&a.out.join(&name), true)?;

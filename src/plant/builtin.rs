@@ -39,4 +39,10 @@ pub const BUILTIN: &[(&str, &str, &str, &str)] = &[
         "boucwen_multisine.json",
         include_str!("../../scenarios/boucwen_multisine.json"),
     ),
+    (
+        "hidden_creep_piezo.json",
+        include_str!("../../plants/hidden_creep_piezo.json"),
+        "hidden_effect_1khz.json",
+        include_str!("../../scenarios/hidden_effect_1khz.json"),
+    ),
 ];
