@@ -1,0 +1,225 @@
+//! compare, diagnose, improve and demo from the command line: outputs, JSON shapes, bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_hystbench"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A creep record and two plant files used as models: with and without creep.
+fn setup(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
+    let data = dir.join("d.csv");
+    let plant = root().join("plants/hidden_creep_piezo.json");
+    let o = run(&[
+        "simulate",
+        "--plant",
+        s(&plant),
+        "--scenario",
+        s(&root().join("scenarios/hidden_effect_1khz.json")),
+        "--out",
+        s(&data),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut spec: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&plant).unwrap()).unwrap();
+    spec["outputs"][0].as_object_mut().unwrap().remove("creep");
+    let without = dir.join("without_creep.json");
+    std::fs::write(&without, spec.to_string()).unwrap();
+    (data, plant, without)
+}
+
+#[test]
+fn diagnose_json_names_the_missing_effect_and_nothing_for_the_true_plant() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, plant, without) = setup(dir.path());
+    let o = run(&[
+        "diagnose",
+        "--data",
+        s(&data),
+        "--model",
+        s(&without),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["missing"], "creep");
+    assert_eq!(v["ranking"][0]["effect"], "creep");
+    assert!(v["ranking"][0]["explained"].as_f64().unwrap() > 0.5);
+    let o = run(&[
+        "diagnose",
+        "--data",
+        s(&data),
+        "--model",
+        s(&plant),
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["missing"].is_null(), "{v}");
+    // words a user acts on
+    let o = run(&["diagnose", "--data", s(&data), "--model", s(&without)]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("creep: after each step the error drifts by") && text.contains("per decade"),
+        "{text}"
+    );
+}
+
+#[test]
+fn compare_writes_a_report_with_figures() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, _, without) = setup(dir.path());
+    let rep = dir.path().join("rep");
+    let o = run(&[
+        "compare",
+        "--data",
+        s(&data),
+        "--model",
+        s(&without),
+        "--report",
+        s(&rep),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let md = std::fs::read_to_string(rep.join("report.md")).unwrap();
+    for needle in [
+        "R^2",
+        "rising input",
+        "during holds",
+        "frequency band",
+        "Worst windows",
+        "loop.png",
+    ] {
+        assert!(md.contains(needle), "report lacks {needle}");
+    }
+    assert!(rep.join("prediction.csv").exists() && rep.join("residual_loop.png").exists());
+    // a folder of the user's is not written into without --force
+    let mine = dir.path().join("mine");
+    std::fs::create_dir(&mine).unwrap();
+    std::fs::write(mine.join("notes.txt"), "mine").unwrap();
+    let o = run(&[
+        "compare",
+        "--data",
+        s(&data),
+        "--model",
+        s(&without),
+        "--report",
+        s(&mine),
+    ]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--force"));
+}
+
+#[test]
+fn improve_adds_the_hidden_effect_and_the_error_falls() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, _, _) = setup(dir.path());
+    let start = dir.path().join("start.json");
+    let o = run(&[
+        "fit",
+        "--data",
+        s(&data),
+        "--effects",
+        "hysteresis,dynamics",
+        "--out",
+        s(&start),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = dir.path().join("imp");
+    let o = run(&[
+        "improve",
+        "--data",
+        s(&data),
+        "--model",
+        s(&start),
+        "--out",
+        s(&out),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let ladder = v["ladder"].as_array().unwrap();
+    assert_eq!(ladder[0]["missing"], "creep");
+    let (r0, r1) = (
+        ladder[0]["rmse"].as_f64().unwrap(),
+        ladder[1]["rmse"].as_f64().unwrap(),
+    );
+    assert!(r0 / r1 >= 3.0, "{r0} -> {r1}");
+    assert!(ladder.last().unwrap()["missing"].is_null());
+    let csv = std::fs::read_to_string(out.join("ladder.csv")).unwrap();
+    assert!(csv.starts_with("step,effects,rmse,r2\n") && csv.contains("creep"));
+    assert!(out.join("ladder.png").exists() && out.join("model_1.json").exists());
+}
+
+#[test]
+fn bad_model_and_record_combinations_are_explained() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, _, _) = setup(dir.path());
+    // a 2-input model on a 1-input record
+    let o = run(&[
+        "diagnose",
+        "--data",
+        s(&data),
+        "--model",
+        s(&root().join("plants/piezo_2dof.json")),
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("u1") && e.contains("t, u, y"),
+        "{e}"
+    );
+    // an unknown model format
+    let m = dir.path().join("m.json");
+    std::fs::write(&m, r#"{"format":"something-else","version":1}"#).unwrap();
+    let o = run(&["compare", "--data", s(&data), "--model", s(&m)]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success()
+            && e.contains("unknown model format")
+            && e.contains("hystbench-greybox"),
+        "{e}"
+    );
+    // an unknown effect
+    let o = run(&[
+        "fit",
+        "--data",
+        s(&data),
+        "--effects",
+        "hysteresis,magic",
+        "--out",
+        s(&dir.path().join("x.json")),
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("magic") && e.contains("creep"),
+        "{e}"
+    );
+    assert!(!dir.path().join("x.json").exists());
+}
+
+#[test]
+fn demo_runs_the_whole_story() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo");
+    let o = run(&["demo", "--out", s(&out)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let md = std::fs::read_to_string(out.join("README.md")).unwrap();
+    assert!(
+        md.contains("Identification") && md.contains("hidden effect") && md.contains("| creep |"),
+        "{md}"
+    );
+    assert!(String::from_utf8_lossy(&o.stdout).contains("report:"));
+    assert!(
+        out.join("records/bouc_wen_piezo_loop.png").exists()
+            && out.join("improve/ladder.png").exists()
+    );
+}
