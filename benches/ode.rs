@@ -51,13 +51,13 @@ fn main() {
         "-"
     );
     let cases = [
+        ("dopri5 rtol 1e-8", IntegratorKind::Dopri5, 1e-8, 20),
         (
-            "dopri5 rtol 1e-8 (default)",
+            "dopri5 rtol 1e-6 (plants/bouc_wen_benchmark.json)",
             IntegratorKind::Dopri5,
-            1e-8,
+            1e-6,
             20,
         ),
-        ("dopri5 rtol 1e-6", IntegratorKind::Dopri5, 1e-6, 20),
         ("rk4 x20", IntegratorKind::Rk4, 1e-8, 20),
         ("rk4 x10", IntegratorKind::Rk4, 1e-8, 10),
         ("rk4 x5", IntegratorKind::Rk4, 1e-8, 5),
