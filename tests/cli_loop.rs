@@ -223,3 +223,72 @@ fn demo_runs_the_whole_story() {
             && out.join("improve/ladder.png").exists()
     );
 }
+
+#[test]
+fn diagnose_and_compare_work_on_a_narx_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("bw.csv");
+    let o = run(&[
+        "simulate",
+        "--plant",
+        s(&root().join("plants/bouc_wen_piezo.json")),
+        "--scenario",
+        s(&root().join("scenarios/seed_1dof.json")),
+        "--out",
+        s(&data),
+    ]);
+    assert!(o.status.success());
+    let m = dir.path().join("narx.json");
+    let o = run(&[
+        "identify",
+        "--data",
+        s(&data),
+        "--out",
+        s(&m),
+        "--seed",
+        "3",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = run(&["diagnose", "--data", s(&data), "--model", s(&m), "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // a NARX model has none of the library's effects: all that apply are ranked
+    let ranked: Vec<&str> = v["ranking"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["effect"].as_str().unwrap())
+        .collect();
+    assert_eq!(ranked.len(), 3, "{v}");
+    assert!(
+        ranked.contains(&"hysteresis") && ranked.contains(&"creep") && ranked.contains(&"dynamics")
+    );
+    let o = run(&["compare", "--data", s(&data), "--model", s(&m), "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(
+        v["outputs"][0]["scores"]["r2"].as_f64().unwrap() > 0.99,
+        "{v}"
+    );
+}
+
+#[test]
+fn a_diverging_narx_free_run_is_reported_not_scored() {
+    // trained on sines and steps, tested on long holds: this NARX leaves the data's range
+    let dir = tempfile::tempdir().unwrap();
+    let (data, _, _) = setup(dir.path());
+    let m = dir.path().join("narx.json");
+    let o = run(&["identify", "--data", s(&data), "--out", s(&m), "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let y = &v["outputs"]["y"];
+    if y["r2_fr_test"].is_null() {
+        assert!(y["diverged_at"].as_u64().is_some(), "{v}");
+        let o = run(&["diagnose", "--data", s(&data), "--model", s(&m)]);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && e.contains("diverged at sample"),
+            "{e}"
+        );
+    }
+}
