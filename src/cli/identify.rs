@@ -2,6 +2,8 @@
 //! the training and test parts, and write the model file.
 
 use crate::data::{check_writable, read_csv, write_atomic, IoRecord};
+use crate::effect::basis::{self, FeatureSpec};
+use crate::effect::EffectName;
 use crate::narx::model::OutputEvaluation;
 use crate::narx::{FittedNarx, Lags, NarxConfig, OptimizerKind, Protocol};
 use anyhow::Context;
@@ -34,6 +36,11 @@ pub struct IdentifyArgs {
     pub batch: usize,
     #[command(flatten)]
     pub net: NetArgs,
+    /// Effects whose basis signals (computed from the inputs, numbers fixed on the training
+    /// record and stored in the model) are added as extra regressors: hysteresis, creep,
+    /// dynamics, coupling.
+    #[arg(long, value_delimiter = ',')]
+    pub features: Vec<String>,
     /// Model file to write (JSON).
     #[arg(long)]
     pub out: PathBuf,
@@ -197,6 +204,36 @@ pub fn cell(v: Option<f64>, diverged: Option<usize>) -> String {
     }
 }
 
+/// The feature definitions of the named effects on a training record (in the order named,
+/// duplicates once).
+pub fn feature_specs(names: &[String], train: &IoRecord) -> anyhow::Result<Vec<FeatureSpec>> {
+    let mut effects: Vec<EffectName> = Vec::new();
+    for n in names {
+        let e: EffectName = n.parse().context("--features")?;
+        if !effects.contains(&e) {
+            effects.push(e);
+        }
+    }
+    let inputs: Vec<&[f64]> = train.inputs.iter().map(|s| &s.values[..]).collect();
+    let mut specs = Vec::new();
+    for e in effects {
+        let f = basis::feature_specs(e, &inputs, train.ts);
+        if f.is_empty() {
+            anyhow::bail!(
+                "--features {e}: no basis signals for this record ({})",
+                match e {
+                    EffectName::Coupling => "coupling needs at least two inputs",
+                    EffectName::Creep =>
+                        "the record is too short for creep time constants of 20 samples or more",
+                    _ => "too few samples",
+                }
+            );
+        }
+        specs.extend(f);
+    }
+    Ok(specs)
+}
+
 /// Run `identify`.
 pub fn run(args: IdentifyArgs) -> anyhow::Result<()> {
     check_writable(&args.out, args.force)?;
@@ -208,6 +245,8 @@ pub fn run(args: IdentifyArgs) -> anyhow::Result<()> {
         args.lr,
         args.batch,
     );
+    let mut cfg = cfg;
+    cfg.features = feature_specs(&args.features, &train)?;
     let need = cfg.lags.start() + 2;
     if args.test.is_none() && train.len() < need {
         anyhow::bail!(

@@ -75,6 +75,9 @@ pub struct SweepNetArgs {
     /// Restarts per setting (default protocol).
     #[arg(long)]
     pub restarts: Option<usize>,
+    /// Simulation-error phase: maximum gradient steps per restart (default protocol).
+    #[arg(long)]
+    pub sim_steps: Option<usize>,
 }
 
 /// One grid point.
@@ -129,7 +132,7 @@ fn config(a: &SweepArgs, s: &Setting, inputs: Vec<String>, outputs: Vec<String>)
         seed: s.seed,
         protocol: a.net.protocol,
         restarts: a.net.restarts,
-        sim_steps: None,
+        sim_steps: a.net.sim_steps,
         sim_lr: None,
         window: None,
         sim_patience: None,

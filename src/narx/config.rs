@@ -2,6 +2,7 @@
 
 use super::regressors::Lags;
 use super::NarxError;
+use crate::effect::basis::FeatureSpec;
 use serde::{Deserialize, Serialize};
 
 /// Gradient method.
@@ -52,6 +53,10 @@ pub struct NarxConfig {
     /// Settings of the default protocol (ignored by `study`).
     #[serde(default)]
     pub robust: RobustSettings,
+    /// Extra exogenous signals computed from the inputs (effect-library basis signals with
+    /// numbers fixed on the training record), after the inputs; recomputed on every record.
+    #[serde(default)]
+    pub features: Vec<FeatureSpec>,
 }
 
 /// Settings of the default (free-run reliable) protocol.
@@ -83,7 +88,18 @@ pub struct RobustSettings {
     /// extrapolate better on short records).
     #[serde(default)]
     pub weight_decay: f64,
+    /// Records shorter than [`SHORT_RECORD`] samples get the short-record settings (see
+    /// [`RobustSettings::for_record`]) for every field left at its default.
+    #[serde(default = "yes")]
+    pub short_record_settings: bool,
 }
+
+fn yes() -> bool {
+    true
+}
+
+/// Training records under this many samples are "short" (the study's 2-DoF record: 250).
+pub const SHORT_RECORD: usize = 1000;
 
 impl Default for RobustSettings {
     fn default() -> Self {
@@ -99,6 +115,7 @@ impl Default for RobustSettings {
             eval_every: 10,
             sim_patience: 6,
             weight_decay: 0.0,
+            short_record_settings: true,
         }
     }
 }
@@ -106,7 +123,40 @@ impl Default for RobustSettings {
 impl RobustSettings {
     /// Restarts for a training record of `n` samples.
     pub fn restarts_for(&self, n: usize) -> usize {
-        self.restarts.unwrap_or(if n < 5000 { 8 } else { 2 })
+        self.restarts.unwrap_or(if n < SHORT_RECORD {
+            16
+        } else if n < 5000 {
+            8
+        } else {
+            2
+        })
+    }
+
+    /// The settings used on a training record of `n` samples. A short record (under
+    /// [`SHORT_RECORD`]) cannot spare a validation part: the whole record trains the
+    /// simulation error and the free run over the whole record (from its start, transient
+    /// included) selects the weights and the restart; simulation-error training runs longer
+    /// (3000 steps, patience 50, learning rate 5e-3; each step is cheap). Only fields left at
+    /// their default values change.
+    pub fn for_record(&self, n: usize) -> RobustSettings {
+        let mut r = self.clone();
+        if n >= SHORT_RECORD || !self.short_record_settings {
+            return r;
+        }
+        let d = RobustSettings::default();
+        if r.validation_fraction == d.validation_fraction {
+            r.validation_fraction = 0.0;
+        }
+        if r.sim_steps == d.sim_steps {
+            r.sim_steps = 3000;
+        }
+        if r.sim_patience == d.sim_patience {
+            r.sim_patience = 50;
+        }
+        if r.sim_lr == d.sim_lr {
+            r.sim_lr = 5e-3;
+        }
+        r
     }
 }
 
@@ -131,7 +181,23 @@ impl NarxConfig {
             seed: 0,
             protocol: Protocol::Default,
             robust: RobustSettings::default(),
+            features: Vec::new(),
         }
+    }
+
+    /// Exogenous signals per output: inputs plus features.
+    pub fn n_signals(&self) -> usize {
+        self.inputs.len() + self.features.len()
+    }
+
+    /// The exogenous signals of a record with the configuration's inputs (in order): the
+    /// inputs, then each feature computed from them.
+    pub fn exogenous(&self, inputs: &[&[f64]], ts: f64) -> Vec<Vec<f64>> {
+        let mut v: Vec<Vec<f64>> = inputs.iter().map(|u| u.to_vec()).collect();
+        for f in &self.features {
+            v.push(f.compute(inputs, ts));
+        }
+        v
     }
 
     /// Check every setting; the error names the field and the rule.
@@ -172,6 +238,15 @@ impl NarxConfig {
         if self.epochs == 0 {
             return bad("epochs", "0".into(), "must be at least 1");
         }
+        for f in &self.features {
+            if let Err(why) = f.check(self.inputs.len()) {
+                return bad(
+                    "features",
+                    why,
+                    "input index below the number of inputs; finite, positive parameters",
+                );
+            }
+        }
         let r = &self.robust;
         if !(r.validation_fraction >= 0.0 && r.validation_fraction < 0.9) {
             return bad(
@@ -202,7 +277,7 @@ impl NarxConfig {
 
     /// Network layer widths for `n_signals` exogenous signals.
     pub fn sizes(&self) -> Vec<usize> {
-        let mut s = vec![self.lags.width(self.inputs.len())];
+        let mut s = vec![self.lags.width(self.n_signals())];
         s.extend(std::iter::repeat_n(self.neurons, self.layers));
         s.push(1);
         s

@@ -99,6 +99,11 @@ impl OutputPrediction {
     }
 }
 
+/// The input columns of a record as slices.
+fn input_slices(rec: &IoRecord) -> Vec<&[f64]> {
+    rec.inputs.iter().map(|s| &s.values[..]).collect()
+}
+
 fn names_str(v: &[String]) -> String {
     format!("[{}]", v.join(", "))
 }
@@ -149,16 +154,12 @@ impl NarxConfig {
                 });
             }
         }
-        let input_scaling: Vec<Standardiser> = train
-            .inputs
-            .iter()
-            .map(|s| Standardiser::fit(&s.values))
-            .collect();
-        let u: Vec<Vec<f64>> = train
-            .inputs
+        let raw = self.exogenous(&input_slices(train), train.ts);
+        let input_scaling: Vec<Standardiser> = raw.iter().map(|s| Standardiser::fit(s)).collect();
+        let u: Vec<Vec<f64>> = raw
             .iter()
             .zip(&input_scaling)
-            .map(|(s, sc)| sc.apply(&s.values))
+            .map(|(s, sc)| sc.apply(s))
             .collect();
         let restarts = match self.protocol {
             Protocol::Default => self.robust.restarts_for(n),
@@ -283,7 +284,7 @@ impl NarxConfig {
                 )
             }
             Protocol::Default => {
-                let r = &self.robust;
+                let r = &self.robust.for_record(n);
                 let n_val = (n as f64 * r.validation_fraction).round() as usize;
                 // validation needs a few samples beyond the initial lags; otherwise score on all
                 let (fit_end, val_from) = if n_val >= 8 && n - n_val >= start + 8 {
@@ -380,11 +381,12 @@ impl FittedNarx {
                 // at rest: physical zero
                 None => vec![o.scaling.apply(&[0.0])[0]; rec.len()],
             },
-            u: rec
-                .inputs
+            u: self
+                .config
+                .exogenous(&input_slices(rec), rec.ts)
                 .iter()
                 .zip(&self.input_scaling)
-                .map(|(s, sc)| sc.apply(&s.values))
+                .map(|(s, sc)| sc.apply(s))
                 .collect(),
         }
     }
@@ -500,11 +502,11 @@ impl FittedNarx {
     /// Internal consistency of a loaded model.
     fn validate(&self) -> Result<(), String> {
         self.config.check().map_err(|e| format!("config: {e}"))?;
-        if self.input_scaling.len() != self.config.inputs.len() {
+        if self.input_scaling.len() != self.config.n_signals() {
             return Err(format!(
-                "{} input scalings for {} inputs",
+                "{} input scalings for {} inputs and features",
                 self.input_scaling.len(),
-                self.config.inputs.len()
+                self.config.n_signals()
             ));
         }
         if self.outputs.len() != self.config.outputs.len() {
@@ -514,10 +516,10 @@ impl FittedNarx {
                 self.config.outputs.len()
             ));
         }
-        let width = self.config.lags.width(self.config.inputs.len());
+        let width = self.config.lags.width(self.config.n_signals());
         for (o, name) in self.outputs.iter().zip(&self.config.outputs) {
             if o.regressor.lags != self.config.lags
-                || o.regressor.du_gain.len() != self.config.inputs.len()
+                || o.regressor.du_gain.len() != self.config.n_signals()
                 || !(o.regressor.dy_gain.is_finite()
                     && o.regressor.du_gain.iter().all(|g| g.is_finite()))
             {
@@ -555,9 +557,9 @@ impl FittedNarx {
                 return Err(format!("output `{}`: invalid scaling", o.name));
             }
         }
-        for (s, name) in self.input_scaling.iter().zip(&self.config.inputs) {
+        for (i, s) in self.input_scaling.iter().enumerate() {
             if !(s.mean.is_finite() && s.std.is_finite() && s.std > 0.0) {
-                return Err(format!("input `{name}`: invalid scaling"));
+                return Err(format!("exogenous signal {i}: invalid scaling"));
             }
         }
         Ok(())
