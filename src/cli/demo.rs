@@ -52,7 +52,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     std::fs::create_dir_all(&records)?;
     let mut md =
         String::from("# hystbench demo\n\n## 1. Simulated plants (known ground truth)\n\n");
-    md += "| plant | scenario | samples | sampling | inputs -> outputs | output range | hysteresis width |\n";
+    md += "| plant | scenario | samples | sampling rate | inputs -> outputs | output range | hysteresis width |\n";
     md += "|---|---|---|---|---|---|---|\n";
     eprintln!("1. simulating the shipped plants on their default scenarios");
     for (plant_file, plant_json, scen_file, scen_json) in BUILTIN {
@@ -73,11 +73,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             let u = &r.inputs[o.min(r.inputs.len() - 1)];
             let _ = writeln!(
                 md,
-                "| {} | {} | {} | {} s | {} -> {} | {:.3} {} | {:.1} % |",
+                "| {} | {} | {} | {:.0} Hz | {} -> {} | {:.3} {} | {:.1} % |",
                 plant.name,
                 scenario.spec.name,
                 r.len(),
-                r.ts,
+                1.0 / r.ts,
                 u.name,
                 y.name,
                 ptp(&y.values),
