@@ -216,15 +216,18 @@ pub fn diagnose(
     match missing {
         Some(m) => {
             for od in &outputs {
-                if let Some(i) = od.scores.iter().position(|s| s.effect == m) {
-                    let _ = i;
-                    if let Some(msg) = od.messages.iter().find(|t| t.starts_with(m.as_str())) {
-                        summary.push(format!("{}: {msg}", od.output));
-                    }
+                if let Some(msg) = od.messages.iter().find(|t| t.starts_with(m.as_str())) {
+                    summary.push(format!("{}: {msg}", od.output));
                 }
             }
+            let with: Vec<&str> = model_effects
+                .iter()
+                .chain(std::iter::once(&m))
+                .map(|e| e.as_str())
+                .collect();
             summary.push(format!(
-                "add it: hystbench fit --effects <the model's effects>,{m}"
+                "add it: hystbench fit --effects {} (grey-box), or hystbench identify --features {m} (NARX); hystbench improve does the loop",
+                with.join(",")
             ));
         }
         None => {
@@ -254,6 +257,11 @@ fn describe(
     unit: &str,
 ) -> String {
     let u = &rec.inputs[direct].values;
+    let unit = if unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {unit}")
+    };
     if s.explained < 0.05 {
         return format!(
             "{}: no evidence in this record: its basis explains none of the residual out of sample",
@@ -262,7 +270,7 @@ fn describe(
     }
     let change = {
         format!(
-            "adding {} should bring the RMS error from {:.3} to about {:.3} {unit} ({:.0} % of the residual explained out of sample)",
+            "adding {} should bring the RMS error from {:.3} to about {:.3}{unit} ({:.0} % of the residual explained out of sample)",
             s.effect,
             s.rms_now,
             s.rms_after,
@@ -277,7 +285,7 @@ fn describe(
         ),
         EffectName::Creep => match creep_drift(u, e, rec.ts) {
             Some((slope, holds)) => format!(
-                "after each step the error drifts by {:.3} {unit} per decade of time ({holds} holds)",
+                "after each step the error drifts by {:.3}{unit} per decade of time ({holds} holds)",
                 slope.abs()
             ),
             None => "the error follows slow first-order trends of the output (no holds in the record to measure the drift per decade)".to_string(),
