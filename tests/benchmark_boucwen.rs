@@ -201,3 +201,48 @@ fn greybox_fit_recovers_a_simulated_plant() {
         "{fit:?}"
     );
 }
+
+/// The command refuses a folder that is not there, naming it, and writes nothing to stdout.
+#[test]
+fn cli_names_a_missing_folder() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_hystbench"))
+        .args([
+            "benchmark",
+            "boucwen",
+            "--data-dir",
+            "no/such/folder",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(out.stdout.is_empty());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("no/such/folder") && err.contains("--data-dir"),
+        "{err}"
+    );
+}
+
+/// The whole command on the shared data folder (not in the repository):
+/// `cargo test --release --test benchmark_boucwen -- --ignored --nocapture` from a worktree
+/// next to ../shared (about 10 s).
+#[test]
+#[ignore]
+fn full_benchmark_meets_the_goals() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/boucwen-benchmark");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_hystbench"))
+        .args(["benchmark", "boucwen", "--json", "--data-dir"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    println!("{v}");
+    assert!(v["narx"]["multisine_rms"].as_f64().unwrap() < 4.5e-5);
+    assert!(v["greybox"]["multisine_rms"].as_f64().unwrap() < 7.5e-6);
+}

@@ -113,6 +113,8 @@ pub const PUBLISHED: [Published; 11] = [
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum BenchmarkError {
+    #[error("{dir}: no such folder; give the Bouc-Wen benchmark data folder with --data-dir")]
+    NoFolder { dir: PathBuf },
     #[error("{dir}: the benchmark file `{file}` is missing; the folder must hold {TRAIN_FILE}, {TEST_MULTISINE_FILE} and {TEST_SINESWEEP_FILE} (give it with --data-dir)")]
     MissingFile { dir: PathBuf, file: String },
     #[error("{path}: columns `{found}`, expected exactly `k,t_s,u_N,y_m` (sample, time in s, force in N, displacement in m)")]
@@ -189,6 +191,11 @@ pub fn read_record(path: &Path) -> Result<BenchRecord, BenchmarkError> {
 
 /// Reads the data folder: every file present, the columns `k,t_s,u_N,y_m`, one sampling period.
 pub fn load(dir: &Path) -> Result<BenchmarkData, BenchmarkError> {
+    if !dir.is_dir() {
+        return Err(BenchmarkError::NoFolder {
+            dir: dir.to_path_buf(),
+        });
+    }
     for file in [TRAIN_FILE, TEST_MULTISINE_FILE, TEST_SINESWEEP_FILE] {
         if !dir.join(file).is_file() {
             return Err(BenchmarkError::MissingFile {
