@@ -17,6 +17,7 @@
 //! - [`signal`]: FFT and spectra;
 //! - [`metrics`]: R^2, RMSE, NRMSE / fit %, max error, loop measures.
 
+pub mod benchmark;
 pub mod cli;
 pub mod data;
 pub mod diagnose;

