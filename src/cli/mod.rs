@@ -28,7 +28,7 @@ pub struct Cli {
 /// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// The main job on built-in defaults: simulate the shipped plants and report.
+    /// The main job on built-in defaults: simulate, identify, plot, find a hidden effect.
     Demo(demo::Args),
     /// Simulate a plant on a scenario or a recorded input and write a record.
     Simulate(simulate::Args),
