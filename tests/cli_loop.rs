@@ -282,13 +282,24 @@ fn a_diverging_narx_free_run_is_reported_not_scored() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let y = &v["outputs"]["y"];
+    let o = run(&["diagnose", "--data", s(&data), "--model", s(&m)]);
     if y["r2_fr_test"].is_null() {
-        assert!(y["diverged_at"].as_u64().is_some(), "{v}");
-        let o = run(&["diagnose", "--data", s(&data), "--model", s(&m)]);
+        // never a number for a diverged free run, and diagnose refuses to score it
+        assert!(
+            y["diverged_at"].as_u64().is_some() && y["rmse_fr_test"].is_null(),
+            "{v}"
+        );
         let e = String::from_utf8_lossy(&o.stderr);
         assert!(
             !o.status.success() && e.contains("diverged at sample"),
             "{e}"
         );
+    } else {
+        // a free run that holds is scored and diagnosed like any other model
+        assert!(
+            y["diverged_at"].is_null() && y["rmse_fr_test"].as_f64().is_some(),
+            "{v}"
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
 }

@@ -32,9 +32,14 @@ pub fn predict_record(
     data: &std::path::Path,
     model: &dyn Model,
 ) -> anyhow::Result<(IoRecord, Vec<Vec<f64>>)> {
-    let rec = read_csv(data)?;
-    let io = model.select(&rec)?;
-    let pred = model.predict(&io)?;
+    let io = model.select(&read_csv(data)?)?;
+    let pred = predict_io(model, &io)?;
+    Ok((io, pred))
+}
+
+/// Predict a selected record, refusing a prediction that left the finite range.
+pub fn predict_io(model: &dyn Model, io: &IoRecord) -> anyhow::Result<Vec<Vec<f64>>> {
+    let pred = model.predict(io)?;
     for (p, name) in pred.iter().zip(io.output_names()) {
         if let Some(k) = p.iter().position(|v| !v.is_finite()) {
             anyhow::bail!(
@@ -43,7 +48,7 @@ pub fn predict_record(
             );
         }
     }
-    Ok((io, pred))
+    Ok(pred)
 }
 
 /// The comparison as Markdown.
@@ -137,12 +142,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         crate::data::write_csv_atomic(&dir.join("prediction.csv"), &names, &cols, true)?;
         let figures = write_figures(dir, &io, &pred)?;
-        let mut md = md.clone();
-        md += "## Figures\n\n";
+        let mut report = format!("{md}## Figures\n\n");
         for f in figures {
-            md += &format!("![{f}]({f})\n\n");
+            report += &format!("![{f}]({f})\n\n");
         }
-        crate::data::write_atomic(&dir.join("report.md"), md.as_bytes(), true)?;
+        crate::data::write_atomic(&dir.join("report.md"), report.as_bytes(), true)?;
         eprintln!("report: {}", dir.join("report.md").display());
     }
     if a.json {

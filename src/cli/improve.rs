@@ -2,7 +2,7 @@
 //! the effect the diagnosis names, refit, and repeat until nothing significant is missing;
 //! print and plot the ladder of errors.
 
-use crate::cli::compare::{predict_record, write_figures};
+use crate::cli::compare::{predict_io, write_figures};
 use crate::data::read_csv;
 use crate::diagnose::{diagnose, unit_of, DiagnoseOptions};
 use crate::effect::EffectName;
@@ -83,12 +83,11 @@ fn start_config(path: &Path) -> anyhow::Result<GreyBoxConfig> {
 struct Evaluated {
     rmse: f64,
     r2: Option<f64>,
-    io: crate::data::IoRecord,
     pred: Vec<Vec<f64>>,
 }
 
-fn mean_scores(model: &dyn Model, data: &Path) -> anyhow::Result<Evaluated> {
-    let (io, pred) = predict_record(data, model)?;
+fn mean_scores(model: &dyn Model, io: &crate::data::IoRecord) -> anyhow::Result<Evaluated> {
+    let pred = predict_io(model, io)?;
     let sc: Vec<_> = io
         .outputs
         .iter()
@@ -98,7 +97,7 @@ fn mean_scores(model: &dyn Model, data: &Path) -> anyhow::Result<Evaluated> {
     let n = sc.len().max(1) as f64;
     let rmse = sc.iter().map(|s| s.rmse).sum::<f64>() / n;
     let r2 = sc.iter().map(|s| s.r2).sum::<Option<f64>>().map(|s| s / n);
-    Ok(Evaluated { rmse, r2, io, pred })
+    Ok(Evaluated { rmse, r2, pred })
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -112,8 +111,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut model_file = a.model.display().to_string();
     let mut last = None;
     for step in 0..=a.max_steps {
-        let Evaluated { rmse, r2, io, pred } = mean_scores(model.as_ref(), &a.data)?;
-        let d = diagnose(&io, &pred, &model.effects(), &opts);
+        let Evaluated { rmse, r2, pred } = mean_scores(model.as_ref(), &io_all)?;
+        let d = diagnose(&io_all, &pred, &model.effects(), &opts);
         let predicted = d
             .ranking
             .first()
@@ -137,7 +136,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             predicted_rmse: predicted,
             model_file: model_file.clone(),
         });
-        last = Some((io, pred));
+        last = Some(pred);
         if let Some(prev) = rungs.len().checked_sub(2).map(|i| rungs[i].rmse) {
             if rmse >= prev {
                 eprintln!("the error did not fall with the added effect; stopping");
@@ -187,9 +186,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         None,
         true,
     )?;
-    let (io, pred) = last.expect("at least one step");
-    let figures = write_figures(&a.out, &io, &pred)?;
-    let unit = io
+    let pred = last.expect("at least one step");
+    let figures = write_figures(&a.out, &io_all, &pred)?;
+    let unit = io_all
         .outputs
         .first()
         .map(|s| unit_of(&s.name))
