@@ -142,6 +142,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         data: hidden,
         model: start_file,
         out: improve_dir.clone(),
+        train_fraction: None,
         max_steps: 3,
         force: true,
         json: false,

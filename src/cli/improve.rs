@@ -24,6 +24,11 @@ pub struct Args {
     /// Report folder: ladder.csv, ladder.png, report.md, the model of each step, figures.
     #[arg(long)]
     pub out: PathBuf,
+    /// Fit every step on the first fraction F of the record and score it (and choose among
+    /// the candidates) on the rest, the held-out part (default: fit and score on the whole
+    /// record). The diagnosis always looks at the whole record.
+    #[arg(long)]
+    pub train_fraction: Option<f64>,
     /// At most this many effects are added.
     #[arg(long, default_value_t = 4)]
     pub max_steps: usize,
@@ -50,6 +55,8 @@ pub struct Rung {
     pub missing: Option<EffectName>,
     /// Its prediction of the RMS error once the effect is added.
     pub predicted_rmse: Option<f64>,
+    /// The candidates refitted at this step and the RMS error each gave (the best is kept).
+    pub tried: Vec<(EffectName, f64)>,
     pub model_file: String,
 }
 
@@ -86,13 +93,19 @@ struct Evaluated {
     pred: Vec<Vec<f64>>,
 }
 
-fn mean_scores(model: &dyn Model, io: &crate::data::IoRecord) -> anyhow::Result<Evaluated> {
+/// Scores on samples `from..` (the held-out part), the prediction on the whole record (the
+/// model's memory runs through the fitted part).
+fn mean_scores(
+    model: &dyn Model,
+    io: &crate::data::IoRecord,
+    from: usize,
+) -> anyhow::Result<Evaluated> {
     let pred = predict_io(model, io)?;
     let sc: Vec<_> = io
         .outputs
         .iter()
         .zip(&pred)
-        .map(|(y, p)| crate::metrics::scores(&y.values, p))
+        .map(|(y, p)| crate::metrics::scores(&y.values[from..], &p[from..]))
         .collect();
     let n = sc.len().max(1) as f64;
     let rmse = sc.iter().map(|s| s.rmse).sum::<f64>() / n;
@@ -102,16 +115,35 @@ fn mean_scores(model: &dyn Model, io: &crate::data::IoRecord) -> anyhow::Result<
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     let mut config = start_config(&a.model)?;
+    if let Some(f) = a.train_fraction {
+        if !(f > 0.0 && f < 1.0) {
+            anyhow::bail!("--train-fraction {f}: must be a number in (0, 1), e.g. 0.5 (fit on the first half, score on the second)");
+        }
+        config.options.train_fraction = f;
+    } else {
+        config.options.train_fraction = 1.0;
+    }
     crate::cli::demo::prepare_report_folder(&a.out, a.force)?;
     let mut model: Box<dyn Model> = load_model(&a.model)?;
     let rec = read_csv(&a.data)?;
     let io_all = model.select(&rec)?;
+    let from = match a.train_fraction {
+        Some(f) => crate::graybox::train_samples(io_all.len(), f),
+        None => 0,
+    };
+    if from >= io_all.len() {
+        anyhow::bail!(
+            "--train-fraction leaves no held-out samples in {} ({} samples)",
+            a.data.display(),
+            io_all.len()
+        );
+    }
     let opts = DiagnoseOptions::default();
     let mut rungs: Vec<Rung> = Vec::new();
     let mut model_file = a.model.display().to_string();
     let mut last = None;
     for step in 0..=a.max_steps {
-        let Evaluated { rmse, r2, pred } = mean_scores(model.as_ref(), &io_all)?;
+        let Evaluated { rmse, r2, pred } = mean_scores(model.as_ref(), &io_all, from)?;
         let d = diagnose(&io_all, &pred, &model.effects(), &opts);
         let predicted = d
             .ranking
@@ -134,6 +166,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             r2,
             missing: d.missing,
             predicted_rmse: predicted,
+            tried: Vec::new(),
             model_file: model_file.clone(),
         });
         last = Some(pred);
@@ -143,15 +176,36 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 break;
             }
         }
-        let Some(effect) = d.missing else { break };
-        if step == a.max_steps {
+        if d.missing.is_none() || step == a.max_steps {
             break;
         }
-        config = config.with_effect(effect);
-        if !a.quiet {
-            eprintln!("fitting {} ...", config.effect_list());
+        // the diagnosis ranks by a linear proxy: refit with each candidate it calls missing
+        // (at most three) and keep the one whose error falls most
+        let mut best: Option<(f64, GreyBoxConfig, FittedGreyBox)> = None;
+        let mut tried = Vec::new();
+        for &effect in d.candidates.iter().take(3) {
+            let trial = config.with_effect(effect);
+            if !a.quiet {
+                eprintln!("fitting {} ...", trial.effect_list());
+            }
+            let fitted = trial.fit(&io_all)?;
+            let e = mean_scores(&fitted, &io_all, from)?.rmse;
+            tried.push((effect, e));
+            if best.as_ref().is_none_or(|(b, _, _)| e < *b) {
+                best = Some((e, trial, fitted));
+            }
         }
-        let fitted = config.fit(&io_all)?;
+        if tried.len() > 1 && !a.quiet {
+            let list: Vec<String> = tried.iter().map(|(e, r)| format!("{e} {r:.4}")).collect();
+            eprintln!("tried: {} (RMS error); keeping the best", list.join(", "));
+        }
+        if let Some(r) = rungs.last_mut() {
+            r.tried = tried;
+        }
+        let Some((_, chosen, fitted)) = best else {
+            break;
+        };
+        config = chosen;
         let name = format!("model_{}.json", step + 1);
         fitted.save(&a.out.join(&name), true)?;
         model_file = a.out.join(&name).display().to_string();
@@ -194,11 +248,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .map(|s| unit_of(&s.name))
         .unwrap_or_default();
     let mut md = format!("# Model improvement on {}\n\n", a.data.display());
-    md += "| step | effects | RMS error | R^2 | diagnosis: missing | predicted RMS with it |\n|---|---|---|---|---|---|\n";
+    if from > 0 {
+        let _ = writeln!(
+            md,
+            "Each model fitted on samples 0..{from}; errors on the held-out samples {from}..{}.\n",
+            io_all.len()
+        );
+    }
+    md += "| step | effects | RMS error | R^2 | diagnosis: missing | predicted RMS with it | refitted with (RMS error) |\n|---|---|---|---|---|---|---|\n";
     for r in &rungs {
         let _ = writeln!(
             md,
-            "| {} | {} | {:.4} {unit} | {} | {} | {} |",
+            "| {} | {} | {:.4} {unit} | {} | {} | {} | {} |",
             r.step,
             effect_list(&r.effects),
             r.rmse,
@@ -206,7 +267,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             r.missing
                 .map_or("nothing significant".into(), |m| m.to_string()),
             r.predicted_rmse
-                .map_or("".into(), |v| format!("{v:.4} {unit}"))
+                .map_or("".into(), |v| format!("{v:.4} {unit}")),
+            r.tried
+                .iter()
+                .map(|(e, v)| format!("{e} {v:.4}"))
+                .collect::<Vec<_>>()
+                .join(", ")
         );
     }
     md += "\n![ladder](ladder.png)\n\n";

@@ -71,6 +71,8 @@ pub struct OutputDiagnosis {
     pub scores: Vec<EffectScore>,
     pub whiteness: Whiteness,
     pub missing: Option<EffectName>,
+    /// Every effect the model lacks that passes the test on this output, best first.
+    pub candidates: Vec<EffectName>,
     pub messages: Vec<String>,
 }
 
@@ -91,6 +93,10 @@ pub struct Diagnosis {
     pub ranking: Vec<Rank>,
     /// The effect to add, or `None` when nothing significant is missing.
     pub missing: Option<EffectName>,
+    /// Every effect that passes the test on some output, best first (`missing` is the first).
+    /// Regression on basis banks is a linear proxy: when two effects explain about as much, only
+    /// a refit with each tells which one the record wants (`hystbench improve` does that).
+    pub candidates: Vec<EffectName>,
     pub outputs: Vec<OutputDiagnosis>,
     /// What to do, in words.
     pub summary: Vec<String>,
@@ -146,14 +152,16 @@ pub fn diagnose(
         for bank in &banks {
             let in_model = model_effects.contains(&bank.effect);
             let cols: Vec<&[f64]> = bank.signals.iter().map(Vec::as_slice).collect();
-            // a present effect is scored alone (how much of the residual is its misfit);
-            // a missing one on top of the present ones
-            let base: &[&[f64]] = if in_model {
-                &[yhat.as_slice()]
+            // a present effect is scored alone (how much of the residual is its misfit); a
+            // missing one on top of the present ones, or of the prediction alone when the
+            // present banks extrapolate badly out of sample
+            let minimal: &[&[f64]] = &[yhat.as_slice()];
+            let bases: Vec<&[&[f64]]> = if in_model {
+                vec![minimal]
             } else {
-                &baseline
+                vec![&baseline, minimal]
             };
-            if let Some(x) = regression::explained_out_of_sample(&e, base, &cols) {
+            if let Some(x) = regression::explained_out_of_sample(&e, &bases, &cols) {
                 scores.push(EffectScore {
                     effect: bank.effect,
                     explained: x.fraction,
@@ -165,9 +173,15 @@ pub fn diagnose(
         }
         scores.sort_by(|a, b| b.explained.total_cmp(&a.explained));
         let w = whiteness(&e, &named, opts.max_lag);
-        let top = scores.iter().find(|s| !s.in_model);
-        let missing = top
-            .filter(|s| !w.white && s.explained >= opts.threshold)
+        let candidates: Vec<EffectName> = scores
+            .iter()
+            .filter(|s| !s.in_model && !w.white && s.explained >= opts.threshold)
+            .map(|s| s.effect)
+            .collect();
+        let missing = scores
+            .iter()
+            .find(|s| !s.in_model)
+            .filter(|s| candidates.contains(&s.effect))
             .map(|s| s.effect);
         let unit = unit_of(&y.name);
         let mut messages = Vec::new();
@@ -180,6 +194,7 @@ pub fn diagnose(
             scores,
             whiteness: w,
             missing,
+            candidates,
             messages,
         });
     }
@@ -212,7 +227,25 @@ pub fn diagnose(
         .iter()
         .map(|r| r.effect)
         .find(|e| outputs.iter().any(|od| od.missing == Some(*e)));
+    let candidates: Vec<EffectName> = ranking
+        .iter()
+        .map(|r| r.effect)
+        .filter(|e| outputs.iter().any(|od| od.candidates.contains(e)))
+        .collect();
     let mut summary = Vec::new();
+    if let [first, second, ..] = candidates.as_slice() {
+        let share = |e: &EffectName| {
+            ranking
+                .iter()
+                .find(|r| r.effect == *e)
+                .map_or(0.0, |r| 100.0 * r.explained)
+        };
+        summary.push(format!(
+            "{first} ({:.0} %) and {second} ({:.0} %) both explain the residual: regression on their basis signals cannot tell which the record wants (on one drive frequency a lag and a loop look alike; holds show creep, several frequencies or amplitudes show rate-independent hysteresis); `hystbench improve` fits each and keeps the one whose error falls most",
+            share(first),
+            share(second)
+        ));
+    }
     match missing {
         Some(m) => {
             for od in &outputs {
@@ -242,6 +275,7 @@ pub fn diagnose(
     Diagnosis {
         ranking,
         missing,
+        candidates,
         outputs,
         summary,
     }

@@ -109,6 +109,15 @@ fn fit_problem(
     Ok(res)
 }
 
+/// The number of samples a fit on the first `fraction` of `n` samples uses.
+pub fn train_samples(n: usize, fraction: f64) -> usize {
+    if fraction >= 1.0 {
+        n
+    } else {
+        ((n as f64 * fraction).round() as usize).clamp(1, n)
+    }
+}
+
 impl GreyBoxConfig {
     /// The structure of output `o` of a record with `n_inputs` inputs.
     fn structure(
@@ -248,11 +257,7 @@ impl GreyBoxConfig {
             return Err(GreyBoxError::TrainFraction { value: f });
         }
         let n = rec.len();
-        let n_train = if f >= 1.0 {
-            n
-        } else {
-            ((n as f64 * f).round() as usize).clamp(1, n)
-        };
+        let n_train = train_samples(n, f);
         let train = rec.slice(0..n_train);
         let taus = self.check_record(&train)?;
         let input_names = rec.input_names();

@@ -33,6 +33,6 @@ mod model;
 pub mod nnls;
 
 pub use config::{FitOptions, GreyBoxConfig, HysteresisOperator, OPERATOR_NAMES};
-pub use driver::{creep_time_constants, longest_hold, reversals, slow_fraction};
+pub use driver::{creep_time_constants, longest_hold, reversals, slow_fraction, train_samples};
 pub use error::GreyBoxError;
 pub use model::{FitSummary, FittedGreyBox, GreyBoxFile, OutputFit, FORMAT, VERSION};
