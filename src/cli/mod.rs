@@ -15,6 +15,7 @@ pub mod improve;
 pub mod plot;
 pub mod predict;
 pub mod simulate;
+pub mod split;
 pub mod sweep;
 
 /// Simulate, identify, plot and improve models of hysteretic actuators.
@@ -50,6 +51,8 @@ pub enum Command {
     Plot(plot::PlotArgs),
     /// Score the NARX and grey-box models on a published benchmark (Bouc-Wen).
     Benchmark(benchmark::Args),
+    /// Cut a record at its time gaps and resample each part onto a uniform grid.
+    Split(split::Args),
 }
 
 /// Print to standard output, ending with a newline; a closed pipe (`| head`) is not an error.
@@ -77,6 +80,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Improve(a) => improve::run(a),
         Command::Plot(a) => plot::run(a),
         Command::Benchmark(a) => benchmark::run(a),
+        Command::Split(a) => split::run(a),
     }
 }
 

@@ -175,19 +175,101 @@ impl Record {
             let expected = t[0] + k as f64 * period;
             let deviation = tk - expected;
             if deviation.abs() > tol + 1e-9 * tk.abs() * (n as f64).sqrt() {
+                let steps = TimeSteps::of(t);
+                let advice = if steps.gaps.is_empty() {
+                    "resample it onto a uniform grid (`hystbench split` does, by linear interpolation)".to_string()
+                } else {
+                    format!(
+                        "split it at the gaps into separate records (`hystbench split --data {} --out DIR` writes one uniformly resampled file per part)",
+                        self.path.display()
+                    )
+                };
                 return Err(DataError::NonUniformTime {
                     path: self.path.clone(),
                     line: k + 2,
                     column: name.to_string(),
                     time: tk,
-                    expected,
                     period,
                     deviation,
+                    detail: format!(
+                        "{}. A record must be uniformly sampled: {advice}",
+                        steps.describe()
+                    ),
                 });
             }
         }
         // refine with the whole span: more exact than one step
         Ok(Some((t[n - 1] - t[0]) / (n - 1) as f64))
+    }
+}
+
+/// The time steps of a record: the typical step, the gaps and the jitter.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TimeSteps {
+    /// Median step (s).
+    pub median: f64,
+    /// Steps longer than [`TimeSteps::GAP`] x the median: (index of the sample after the gap,
+    /// step in s).
+    pub gaps: Vec<(usize, f64)>,
+    /// Largest |step - median| among the other steps (s), and the index where it occurs.
+    pub jitter: (f64, usize),
+    /// The gap threshold in median steps.
+    pub gap: f64,
+}
+
+impl TimeSteps {
+    /// A step longer than this many median steps is a gap.
+    pub const GAP: f64 = 5.0;
+
+    /// Steps of an increasing time column (at least two samples), gaps by [`TimeSteps::GAP`].
+    pub fn of(t: &[f64]) -> TimeSteps {
+        Self::with_gap(t, Self::GAP)
+    }
+
+    /// Steps of an increasing time column; a step longer than `gap` median steps is a gap.
+    pub fn with_gap(t: &[f64], gap: f64) -> TimeSteps {
+        let steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+        let mut sorted = steps.clone();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+        let mut gaps = Vec::new();
+        let mut jitter = (0.0, 0);
+        for (k, &dt) in steps.iter().enumerate() {
+            if dt > gap * median {
+                gaps.push((k + 1, dt));
+            } else if (dt - median).abs() > jitter.0 {
+                jitter = ((dt - median).abs(), k + 1);
+            }
+        }
+        TimeSteps {
+            median,
+            gaps,
+            jitter,
+            gap,
+        }
+    }
+
+    /// The steps in words; lines are CSV lines (header = line 1).
+    pub fn describe(&self) -> String {
+        let mut s = format!("Median time step {:.6} s", self.median);
+        if let Some(&(k, dt)) = self.gaps.iter().max_by(|a, b| a.1.total_cmp(&b.1)) {
+            s += &format!(
+                "; {} gap(s) longer than {} steps (the largest {:.4} s, before line {})",
+                self.gaps.len(),
+                self.gap,
+                dt,
+                k + 2
+            );
+        }
+        if self.jitter.0 > 0.0 {
+            s += &format!(
+                "; elsewhere steps vary by up to {:.3e} s ({:.1} % of a step, at line {})",
+                self.jitter.0,
+                100.0 * self.jitter.0 / self.median,
+                self.jitter.1 + 2
+            );
+        }
+        s
     }
 }
 

@@ -54,15 +54,16 @@ pub enum DataError {
         what: String,
         available: String,
     },
-    #[error("{path}: line {line}: time `{column}` = {time} breaks uniform sampling (expected {expected} with period {period} s from the start; deviation {deviation:.3e} s). A record must be uniformly sampled: resample it, or split it at the gap into separate records")]
+    #[error("{path}: line {line}: time `{column}` = {time} breaks uniform sampling ({deviation:.3e} s off the grid of period {period} s from the start). {detail}")]
     NonUniformTime {
         path: PathBuf,
         line: usize,
         column: String,
         time: f64,
-        expected: f64,
         period: f64,
         deviation: f64,
+        /// The record's time steps in words (gaps, jitter) and what to do.
+        detail: String,
     },
     #[error(
         "{path}: time column `{column}` does not increase (line {line}: {time} after {previous})"

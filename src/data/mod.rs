@@ -11,10 +11,12 @@
 mod csv;
 mod error;
 mod io_record;
+mod split;
 mod write;
 
-pub use csv::{parse_csv, read_csv, Record};
+pub use csv::{parse_csv, read_csv, Record, TimeSteps};
 pub use error::DataError;
 pub use io_record::default_names;
 pub use io_record::{IoRecord, Signal};
+pub use split::{split_at_gaps, Part, Split};
 pub use write::{check_writable, format_csv, write_atomic, write_csv_atomic, OutputGuard};
