@@ -579,11 +579,12 @@ fn cli_identify_with_features_and_predict_on_another_record() {
     assert!(r2 > 0.999, "free run on the other record: R^2 {r2}");
 }
 
-/// The acceptance over several seeds (long: about 2 minutes on 2 cores):
-/// `cargo test --release --test narx -- --ignored acceptance_over_seeds`.
+/// The 1-DoF acceptance over record seeds 1-4 x `--seed 0,1` (24 fits, about 1.5 min
+/// CPU): `cargo test --release --test narx -- --ignored acceptance_1dof_over_seeds`.
+/// Measured with the CLI on the same records: 24 of 24 >= 0.999.
 #[test]
 #[ignore]
-fn acceptance_over_seeds() {
+fn acceptance_1dof_over_seeds() {
     let mut failed = Vec::new();
     for plant in Plant1::ALL {
         for rs in 1..=4 {
@@ -599,6 +600,20 @@ fn acceptance_over_seeds() {
             }
         }
     }
+    assert!(
+        failed.is_empty(),
+        "below the thresholds:\n{}",
+        failed.join("\n")
+    );
+}
+
+/// The 2-DoF acceptance over record seeds 1-4 x `--seed 0..2`: NOT met yet (12 of 24
+/// outputs >= 0.99, see docs/narx.md); kept as the check for whoever improves it:
+/// `cargo test --release --test narx -- --ignored acceptance_2dof_over_seeds`.
+#[test]
+#[ignore]
+fn acceptance_2dof_over_seeds() {
+    let mut failed = Vec::new();
     for rs in 1..=4 {
         let rec = seed_2dof(rs);
         for seed in 0..3 {
