@@ -27,11 +27,28 @@ fn free_run_test_r2(cfg: &NarxConfig, rec: &IoRecord) -> Vec<Option<f64>> {
         .collect()
 }
 
+/// Fit on the first half; the free-run test R^2 per output and whether the protocol kept the
+/// hysteresis features.
+fn fit_and_score(cfg: &NarxConfig, rec: &IoRecord) -> (Vec<Option<f64>>, Option<bool>) {
+    let (train, test) = rec.split_halves();
+    let m = cfg.fit(&train).expect("fit");
+    let r2 = m
+        .evaluate(&train, &test)
+        .expect("evaluate")
+        .iter()
+        .map(|e| e.r2_fr_test)
+        .collect();
+    (r2, m.feature_selection.map(|f| f.chosen))
+}
+
 #[test]
 fn default_protocol_recovers_bouc_wen_piezo_in_free_run() {
     let rec = seed_1dof(Plant1::BoucWen, 50_000, 1);
-    let r2 = free_run_test_r2(&config(&rec), &rec)[0].expect("no divergence");
+    let (r2, chosen) = fit_and_score(&config(&rec), &rec);
+    let r2 = r2[0].expect("no divergence");
     assert!(r2 >= 0.999, "free-run test R^2 {r2}");
+    // the play features do not win on validation here (8.3e-5 plain vs 6.6e-4 with)
+    assert_eq!(chosen, Some(false));
 }
 
 #[test]
@@ -42,21 +59,26 @@ fn default_protocol_recovers_bouc_wen_with_creep_in_free_run() {
 }
 
 #[test]
-fn default_protocol_on_prandtl_ishlinskii() {
-    // Measured 0.99907 at this seed, but 0.9980-0.9994 over record seeds 1-4 and --seed 0/1:
-    // a finite-lag NARX cannot hold the nine play states of a PI operator, so the 0.999
-    // is not reached robustly without features; with `--features hysteresis` it is (below).
+fn default_protocol_recovers_prandtl_ishlinskii_by_choosing_play_features() {
+    // Without features 0.9980-0.9994 over record seeds 1-4 and --seed 0/1 (a finite-lag NARX
+    // cannot hold the nine play states of a PI operator); the protocol's feature selection keeps
+    // the play operators here (validation MSE 4.5e-4 plain vs 6.0e-6 with): 0.99994.
     let rec = seed_1dof(Plant1::PrandtlIshlinskii, 50_000, 1);
-    let r2 = free_run_test_r2(&config(&rec), &rec)[0].expect("no divergence");
-    assert!(r2 >= 0.999, "free-run test R^2 {r2}");
+    let (r2, chosen) = fit_and_score(&config(&rec), &rec);
+    let r2 = r2[0].expect("no divergence");
+    assert!(r2 >= 0.9999, "free-run test R^2 {r2}");
+    assert_eq!(chosen, Some(true));
 }
 
 #[test]
 fn hysteresis_features_improve_prandtl_ishlinskii_and_are_recomputed_on_another_record() {
     let rec = seed_1dof(Plant1::PrandtlIshlinskii, 50_000, 1);
     let (train, test) = rec.split_halves();
-    let plain = free_run_test_r2(&config(&rec), &rec)[0].expect("no divergence");
+    let mut plain = config(&rec);
+    plain.robust.try_features.clear();
+    let plain = free_run_test_r2(&plain, &rec)[0].expect("no divergence");
     let mut cfg = config(&train);
+    cfg.robust.try_features.clear();
     let u: Vec<&[f64]> = train.inputs.iter().map(|s| &s.values[..]).collect();
     cfg.features = feature_specs(EffectName::Hysteresis, &u, train.ts);
     assert_eq!(cfg.features.len(), 8);
@@ -555,4 +577,59 @@ fn cli_identify_with_features_and_predict_on_another_record() {
     }
     let r2 = hystbench::metrics::r2(&y, &yh).unwrap();
     assert!(r2 > 0.999, "free run on the other record: R^2 {r2}");
+}
+
+/// The 1-DoF acceptance over record seeds 1-4 x `--seed 0,1` (24 fits, about 1.5 min
+/// CPU): `cargo test --release --test narx -- --ignored acceptance_1dof_over_seeds`.
+/// Measured with the CLI on the same records: 24 of 24 >= 0.999.
+#[test]
+#[ignore]
+fn acceptance_1dof_over_seeds() {
+    let mut failed = Vec::new();
+    for plant in Plant1::ALL {
+        for rs in 1..=4 {
+            let rec = seed_1dof(plant, 50_000, rs);
+            for seed in 0..2 {
+                let mut cfg = config(&rec);
+                cfg.seed = seed;
+                let (r2, _) = fit_and_score(&cfg, &rec);
+                let r2 = r2[0].unwrap_or(f64::NEG_INFINITY);
+                if r2 < 0.999 {
+                    failed.push(format!("{} record {rs} seed {seed}: {r2}", plant.name()));
+                }
+            }
+        }
+    }
+    assert!(
+        failed.is_empty(),
+        "below the thresholds:\n{}",
+        failed.join("\n")
+    );
+}
+
+/// The 2-DoF acceptance over record seeds 1-4 x `--seed 0..2`: NOT met yet (12 of 24
+/// outputs >= 0.99, see docs/narx.md); kept as the check for whoever improves it:
+/// `cargo test --release --test narx -- --ignored acceptance_2dof_over_seeds`.
+#[test]
+#[ignore]
+fn acceptance_2dof_over_seeds() {
+    let mut failed = Vec::new();
+    for rs in 1..=4 {
+        let rec = seed_2dof(rs);
+        for seed in 0..3 {
+            let mut cfg = config(&rec);
+            cfg.seed = seed;
+            for (i, r2) in fit_and_score(&cfg, &rec).0.into_iter().enumerate() {
+                let r2 = r2.unwrap_or(f64::NEG_INFINITY);
+                if r2 < 0.99 {
+                    failed.push(format!("2-DoF record {rs} seed {seed} y{}: {r2}", i + 1));
+                }
+            }
+        }
+    }
+    assert!(
+        failed.is_empty(),
+        "below the thresholds:\n{}",
+        failed.join("\n")
+    );
 }

@@ -82,6 +82,8 @@ pub fn narx_config() -> NarxConfig {
     c.neurons = NARX_NEURONS;
     c.robust.restarts = Some(2);
     c.robust.sim_steps = 1000;
+    // the plain NARX, as measured above (no play-feature selection)
+    c.robust.try_features.clear();
     c
 }
 

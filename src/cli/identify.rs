@@ -38,7 +38,9 @@ pub struct IdentifyArgs {
     pub net: NetArgs,
     /// Effects whose basis signals (computed from the inputs, numbers fixed on the training
     /// record and stored in the model) are added as extra regressors: hysteresis, creep,
-    /// dynamics, coupling.
+    /// dynamics, coupling; `none` for the plain network. Without this option the default
+    /// protocol fits both the plain network and one with hysteresis features (play operators)
+    /// and keeps the better free run on the training record's validation part.
     #[arg(long, value_delimiter = ',')]
     pub features: Vec<String>,
     /// Model file to write (JSON).
@@ -209,6 +211,9 @@ pub fn cell(v: Option<f64>, diverged: Option<usize>) -> String {
 pub fn feature_specs(names: &[String], train: &IoRecord) -> anyhow::Result<Vec<FeatureSpec>> {
     let mut effects: Vec<EffectName> = Vec::new();
     for n in names {
+        if n == "none" {
+            anyhow::bail!("--features none cannot be combined with effect names");
+        }
         let e: EffectName = n.parse().context("--features")?;
         if !effects.contains(&e) {
             effects.push(e);
@@ -246,7 +251,13 @@ pub fn run(args: IdentifyArgs) -> anyhow::Result<()> {
         args.batch,
     );
     let mut cfg = cfg;
-    cfg.features = feature_specs(&args.features, &train)?;
+    if !args.features.is_empty() {
+        // named features (or `none`) are taken as they are: no selection
+        cfg.robust.try_features.clear();
+        if !(args.features.len() == 1 && args.features[0] == "none") {
+            cfg.features = feature_specs(&args.features, &train)?;
+        }
+    }
     let need = cfg.lags.start() + 2;
     if args.test.is_none() && train.len() < need {
         anyhow::bail!(
@@ -275,7 +286,15 @@ fn run_with(
         for e in &eval {
             outs.insert(e.name.clone(), evaluation_json(e));
         }
-        let v = serde_json::json!({"outputs": outs, "train_seconds": model.train_seconds});
+        let mut v = serde_json::json!({"outputs": outs, "train_seconds": model.train_seconds});
+        if let Some(fs) = &model.feature_selection {
+            v["feature_selection"] = serde_json::json!({
+                "tried": fs.tried,
+                "chosen": fs.chosen,
+                "validation_mse_without": fs.selection_mse_without,
+                "validation_mse_with": fs.selection_mse_with,
+            });
+        }
         println!("{v}");
     } else {
         println!(
@@ -291,6 +310,18 @@ fn run_with(
                 cell(e.r2_osa_test, None),
                 cell(e.r2_fr_test, e.diverged_at_test),
                 e.rmse_fr_test.map_or("-".into(), |v| format!("{v:.4e}")),
+            );
+        }
+        if let Some(fs) = &model.feature_selection {
+            let names: Vec<String> = fs.tried.iter().map(|e| e.to_string()).collect();
+            println!(
+                "features {}: {} (free-run validation MSE {} without, {} with)",
+                names.join(","),
+                if fs.chosen { "kept" } else { "not kept" },
+                fs.selection_mse_without
+                    .map_or("diverged".into(), |v| format!("{v:.3e}")),
+                fs.selection_mse_with
+                    .map_or("diverged".into(), |v| format!("{v:.3e}")),
             );
         }
         println!(

@@ -139,7 +139,10 @@ fn config(a: &SweepArgs, s: &Setting, inputs: Vec<String>, outputs: Vec<String>)
         weight_decay: None,
         validation_fraction: None,
     };
-    net.config(inputs, outputs, s.lags, s.lr, s.batch)
+    let mut c = net.config(inputs, outputs, s.lags, s.lr, s.batch);
+    // the grid studies the plain network (and keeps the study grid's time): no feature selection
+    c.robust.try_features.clear();
+    c
 }
 
 fn opt(v: Option<f64>) -> String {

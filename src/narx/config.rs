@@ -3,6 +3,7 @@
 use super::regressors::Lags;
 use super::NarxError;
 use crate::effect::basis::FeatureSpec;
+use crate::effect::EffectName;
 use serde::{Deserialize, Serialize};
 
 /// Gradient method.
@@ -92,6 +93,23 @@ pub struct RobustSettings {
     /// [`RobustSettings::for_record`]) for every field left at its default.
     #[serde(default = "yes")]
     pub short_record_settings: bool,
+    /// Feature selection by the protocol: the model is fitted without and with these effects'
+    /// basis signals (`effect::basis::feature_specs` on the training record, added to
+    /// `features`), and the one with the lower free-run validation error (training record only,
+    /// summed over the outputs in standardised units) is kept. Default: hysteresis (play
+    /// operators); empty: no selection. Ignored by `study` and on records under
+    /// [`SHORT_RECORD`] samples (no validation part to decide on).
+    #[serde(default)]
+    pub try_features: Vec<EffectName>,
+    /// The features are kept only when they bring the free-run validation MSE below this
+    /// fraction of the plain model's: a clear win, not noise (the criterion itself varies by
+    /// up to 5x between restarts and seeds of the same model on the same plant).
+    #[serde(default = "feature_gain")]
+    pub feature_gain: f64,
+}
+
+fn feature_gain() -> f64 {
+    0.1
 }
 
 fn yes() -> bool {
@@ -116,6 +134,8 @@ impl Default for RobustSettings {
             sim_patience: 6,
             weight_decay: 0.0,
             short_record_settings: true,
+            try_features: vec![EffectName::Hysteresis],
+            feature_gain: feature_gain(),
         }
     }
 }
@@ -263,6 +283,13 @@ impl NarxConfig {
                 "window/samples_per_step/eval_every",
                 format!("{}/{}/{}", r.window, r.samples_per_step, r.eval_every),
                 "must be positive (window >= 2)",
+            );
+        }
+        if !(r.feature_gain.is_finite() && r.feature_gain > 0.0 && r.feature_gain <= 1.0) {
+            return bad(
+                "feature_gain",
+                r.feature_gain.to_string(),
+                "must be in (0, 1]",
             );
         }
         if !(r.sim_lr.is_finite() && r.sim_lr > 0.0) {

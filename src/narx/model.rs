@@ -1,6 +1,6 @@
 //! The fitted NARX model: fitting (the driver), prediction, scores and the model file.
 
-use super::config::{NarxConfig, Protocol};
+use super::config::{NarxConfig, Protocol, SHORT_RECORD};
 use super::mlp::Mlp;
 use super::regressors::{Regressor, RegressorForm, Series, Standardiser};
 use super::train::{
@@ -9,7 +9,9 @@ use super::train::{
 };
 use super::NarxError;
 use crate::data::IoRecord;
+use crate::effect::basis::{feature_specs, FeatureSpec};
 use crate::effect::noise::stream_seed;
+use crate::effect::EffectName;
 use crate::metrics::{scores, Scores};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -66,6 +68,27 @@ pub struct FittedNarx {
     pub outputs: Vec<OutputModel>,
     /// Wall-clock training time (informative, not part of any result).
     pub train_seconds: f64,
+    /// How the protocol chose the extra features (`None`: no selection ran).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub feature_selection: Option<FeatureSelection>,
+}
+
+/// The protocol's choice between the plain regressors and regressors plus effect-library
+/// features, made on the training record alone: the free-run validation MSE of each output's
+/// chosen restart (standardised units, the error that selects restarts), summed over outputs;
+/// `None` when a free run diverged. The features are kept only when they bring it below
+/// `robust.feature_gain` (default 0.1) times the plain model's, or when the plain model diverged
+/// and they did not.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FeatureSelection {
+    /// The effects tried (`robust.try_features`).
+    pub tried: Vec<EffectName>,
+    /// Their basis signals as defined on the training record.
+    pub candidates: Vec<FeatureSpec>,
+    pub selection_mse_without: Option<f64>,
+    pub selection_mse_with: Option<f64>,
+    /// True when the candidates were added to `config.features`.
+    pub chosen: bool,
 }
 
 /// Prediction mode.
@@ -110,8 +133,63 @@ fn names_str(v: &[String]) -> String {
 
 impl NarxConfig {
     /// Fit one network per output on a training record whose inputs and outputs are the
-    /// configuration's signals (in order).
+    /// configuration's signals (in order). With the default protocol and
+    /// `robust.try_features` (default: hysteresis), the model is fitted without and with those
+    /// effects' basis signals and the lower free-run validation error decides (see
+    /// [`FeatureSelection`]); the chosen features end up in the fitted model's `config.features`.
     pub fn fit(&self, train: &IoRecord) -> Result<FittedNarx, NarxError> {
+        self.check()?;
+        // A short record has no validation part (see `RobustSettings::for_record`): its
+        // selection would score the training free run, which favours the richer model.
+        if self.protocol != Protocol::Default
+            || self.robust.try_features.is_empty()
+            || train.len() < SHORT_RECORD
+        {
+            return self.fit_fixed(train);
+        }
+        let t0 = std::time::Instant::now();
+        let mut plain = self.clone();
+        plain.robust.try_features.clear();
+        // errors (columns, length, constant output) come from the plain fit
+        let without = plain.fit_fixed(train)?;
+        let inputs = input_slices(train);
+        let mut candidates: Vec<FeatureSpec> = Vec::new();
+        for e in &self.robust.try_features {
+            for f in feature_specs(*e, &inputs, train.ts) {
+                if !self.features.contains(&f) && !candidates.contains(&f) {
+                    candidates.push(f);
+                }
+            }
+        }
+        if candidates.is_empty() {
+            let mut m = without;
+            m.train_seconds = t0.elapsed().as_secs_f64();
+            return Ok(m);
+        }
+        let mut rich = plain.clone();
+        rich.features.extend(candidates.iter().cloned());
+        let with = rich.fit_fixed(train)?;
+        let (a, b) = (without.selection_mse(), with.selection_mse());
+        let gain = self.robust.feature_gain;
+        let use_them = match (a, b) {
+            (None, Some(_)) => true,
+            (Some(a), Some(b)) => b < gain * a,
+            _ => false,
+        };
+        let mut m = if use_them { with } else { without };
+        m.feature_selection = Some(FeatureSelection {
+            tried: self.robust.try_features.clone(),
+            candidates,
+            selection_mse_without: a,
+            selection_mse_with: b,
+            chosen: use_them,
+        });
+        m.train_seconds = t0.elapsed().as_secs_f64();
+        Ok(m)
+    }
+
+    /// [`NarxConfig::fit`] with the configuration's features as they are (no selection).
+    fn fit_fixed(&self, train: &IoRecord) -> Result<FittedNarx, NarxError> {
         self.check()?;
         let t0 = std::time::Instant::now();
         if train.input_names() != self.inputs {
@@ -241,6 +319,7 @@ impl NarxConfig {
             input_scaling,
             outputs,
             train_seconds: t0.elapsed().as_secs_f64(),
+            feature_selection: None,
         })
     }
 
@@ -352,6 +431,15 @@ fn plausible_range(y: &[f64]) -> (f64, f64) {
 }
 
 impl FittedNarx {
+    /// The free-run validation MSE that selected each output's restart, summed over outputs;
+    /// `None` if any is missing (a diverged free run, or the study protocol).
+    pub fn selection_mse(&self) -> Option<f64> {
+        self.outputs
+            .iter()
+            .map(|o| o.training.restarts[o.training.chosen_restart].selection_mse)
+            .sum()
+    }
+
     /// Check that a record has the model's inputs (names and order); outputs are optional.
     fn check_record(&self, rec: &IoRecord) -> Result<(), NarxError> {
         if rec.input_names() != self.config.inputs {
