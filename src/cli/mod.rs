@@ -6,6 +6,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod benchmark;
+pub mod benchmark_mr;
 pub mod compare;
 pub mod demo;
 pub mod diagnose;
@@ -48,7 +49,7 @@ pub enum Command {
     Improve(improve::Args),
     /// Draw a figure (PNG or SVG): loop, time, residual-loop, parity, spectrum, sweep, ladder.
     Plot(plot::PlotArgs),
-    /// Score the NARX and grey-box models on a published benchmark (Bouc-Wen).
+    /// Score the NARX and grey-box models on a benchmark (Bouc-Wen; measured MR damper).
     Benchmark(benchmark::Args),
 }
 

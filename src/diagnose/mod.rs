@@ -291,6 +291,12 @@ fn describe(
             None => "the error follows slow first-order trends of the output (no holds in the record to measure the drift per decade)".to_string(),
         },
         EffectName::Dynamics => "the error follows the recent past of the output: a fast linear dynamics (a mode, a lag) is not in the model".to_string(),
+        EffectName::Viscous => format!(
+            "the error follows the rate of {} (correlation {:.2}): a force in d{}/dt (viscous damping) is not in the model",
+            rec.inputs[direct].name,
+            correlation(&crate::effect::viscous::rate(u, rec.ts), e),
+            rec.inputs[direct].name
+        ),
         EffectName::Coupling => {
             let best = rec
                 .inputs
