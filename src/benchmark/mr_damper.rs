@@ -135,6 +135,9 @@ pub enum MrDamperError {
 #[derive(Debug, Clone, PartialEq)]
 pub struct DamperRecord {
     pub path: PathBuf,
+    /// The test this record belongs to (its file name before `_I`, e.g. `sine_A10mm_f1Hz`):
+    /// records of one group are held out together in cross-validation.
+    pub group: String,
     pub x: Vec<f64>,
     pub f: Vec<f64>,
     pub current: f64,
@@ -196,7 +199,12 @@ pub fn read_sine(path: &Path) -> Result<DamperRecord, MrDamperError> {
             row: k + 2,
         });
     }
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_default();
     Ok(DamperRecord {
+        group: stem.split("_I").next().unwrap_or_default().to_string(),
         path: path.to_path_buf(),
         x: rec.column("x_mm")?.to_vec(),
         f: rec.column("F_N")?.to_vec(),
@@ -281,9 +289,33 @@ pub fn load(dir: &Path) -> Result<MrDamperData, MrDamperError> {
 // ---------------------------------------------------------------------------------------------
 // Grey-box
 
-/// Parameters of Spencer's simple Bouc-Wen model at one current (x in mm, F in N).
+/// The nonlinear force term g of F = c0 dx/dt + k0 x + alpha g + f0.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Structure {
+    /// g = z, the Bouc-Wen state (n = 1, A = 1) on x: Spencer's simple Bouc-Wen model.
+    BoucWen,
+    /// g = tanh((dx/dt) / v0): a Bingham plastic (yield force alpha, post-yield damping c0)
+    /// smoothed over the velocity v0 (no displacement memory).
+    Bingham,
+}
+
+impl Structure {
+    /// Name in the report.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Structure::BoucWen => "bouc-wen",
+            Structure::Bingham => "bingham",
+        }
+    }
+}
+
+/// Parameters of the grey-box damper model at one current (x in mm, F in N).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct SpencerParams {
+    pub structure: Structure,
+    /// Bingham: the smoothing velocity v0 (mm/s); 0 for Bouc-Wen.
+    pub v0: f64,
     /// c0 (N s/mm).
     pub c0: f64,
     /// k0 (N/mm).
@@ -314,10 +346,32 @@ pub fn states(x: &[f64], ts: f64, b: f64, gamma: f64) -> Option<(Vec<f64>, Vec<f
     Some((rate(x, ts), z))
 }
 
+/// Rate (mm/s) and the nonlinear term g of a displacement from rest.
+pub fn shape_states(
+    structure: Structure,
+    x: &[f64],
+    ts: f64,
+    b: f64,
+    gamma: f64,
+    v0: f64,
+) -> Option<(Vec<f64>, Vec<f64>)> {
+    match structure {
+        Structure::BoucWen => states(x, ts, b, gamma),
+        Structure::Bingham => {
+            if !(v0.is_finite() && v0 > 0.0) {
+                return None;
+            }
+            let v = rate(x, ts);
+            let g = v.iter().map(|w| (w / v0).tanh()).collect();
+            Some((v, g))
+        }
+    }
+}
+
 impl SpencerParams {
     /// The force from rest for a displacement `x` (mm) sampled at `ts` (s).
     pub fn simulate(&self, x: &[f64], ts: f64) -> Vec<f64> {
-        match states(x, ts, self.b, self.gamma) {
+        match shape_states(self.structure, x, ts, self.b, self.gamma, self.v0) {
             Some((v, z)) => (0..x.len())
                 .map(|k| self.c0 * v[k] + self.k0 * x[k] + self.alpha * z[k] + self.f0)
                 .collect(),
@@ -330,6 +384,8 @@ impl SpencerParams {
         let w = if ib > ia { (i - ia) / (ib - ia) } else { 0.0 };
         let l = |p: f64, q: f64| p + w * (q - p);
         SpencerParams {
+            structure: a.structure,
+            v0: l(a.v0, b.v0),
             c0: l(a.c0, b.c0),
             k0: l(a.k0, b.k0),
             alpha: l(a.alpha, b.alpha),
@@ -362,13 +418,18 @@ fn design_rows(r: &DamperRecord, v: &[f64], z: &[f64], scheduled: bool) -> Vec<[
 
 /// Least squares of F on the columns of every record for fixed (B, Gamma); returns the
 /// coefficients and the RMS residual (N). `m` = 4 (one current) or 8 (affine in I).
-fn linear_fit(recs: &[&DamperRecord], b: f64, gamma: f64, m: usize) -> Option<(Vec<f64>, f64)> {
+fn linear_fit(
+    recs: &[&DamperRecord],
+    structure: Structure,
+    (b, gamma, v0): (f64, f64, f64),
+    m: usize,
+) -> Option<(Vec<f64>, f64)> {
     let mut g = DMatrix::<f64>::zeros(m, m);
     let mut rhs = DVector::<f64>::zeros(m);
     let mut ff = 0.0;
     let mut n = 0usize;
     for r in recs {
-        let (v, z) = states(&r.x, r.ts, b, gamma)?;
+        let (v, z) = shape_states(structure, &r.x, r.ts, b, gamma, v0)?;
         for (row, &f) in design_rows(r, &v, &z, m == 8).iter().zip(&r.f) {
             for i in 0..m {
                 rhs[i] += row[i] * f;
@@ -456,6 +517,8 @@ fn nelder_mead(f: &dyn Fn(&[f64; 2]) -> f64, x0: [f64; 2], step: f64, iters: usi
 /// A fit: (B, Gamma) and the linear coefficients, with the training RMS (N).
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct SpencerFit {
+    pub structure: Structure,
+    pub v0: f64,
     pub b: f64,
     pub gamma: f64,
     /// c0, k0, alpha, f0 (and, when scheduled, their slopes in I: per A).
@@ -475,6 +538,8 @@ impl SpencerFit {
                 }
         };
         SpencerParams {
+            structure: self.structure,
+            v0: self.v0,
             c0: c(0),
             k0: c(1),
             alpha: c(2),
@@ -485,28 +550,89 @@ impl SpencerFit {
     }
 }
 
-/// Fits the Spencer model to records: one model (`scheduled`: coefficients affine in I).
+/// Fits the Spencer (Bouc-Wen) model to records (`scheduled`: coefficients affine in I).
 pub fn fit_spencer(recs: &[&DamperRecord], scheduled: bool) -> Option<SpencerFit> {
+    fit_structure(recs, Structure::BoucWen, scheduled)
+}
+
+/// Golden-section minimisation of `f` on [a, b].
+fn golden(f: &dyn Fn(f64) -> f64, mut a: f64, mut b: f64, iters: usize) -> f64 {
+    let r = 0.5 * (5f64.sqrt() - 1.0);
+    let mut c = b - r * (b - a);
+    let mut d = a + r * (b - a);
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..iters {
+        if fc < fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - r * (b - a);
+            fc = f(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + r * (b - a);
+            fd = f(d);
+        }
+    }
+    if fc < fd {
+        c
+    } else {
+        d
+    }
+}
+
+/// Fits a model of the given structure to records: one model (`scheduled`: coefficients
+/// affine in I). Variable projection: least squares for (c0, k0, alpha, f0) inside; outside,
+/// Bouc-Wen: a grid then Nelder-Mead on (ln B, atanh(Gamma / B)); Bingham: a grid then a
+/// golden-section search on ln v0.
+pub fn fit_structure(
+    recs: &[&DamperRecord],
+    structure: Structure,
+    scheduled: bool,
+) -> Option<SpencerFit> {
     let m = if scheduled { 8 } else { 4 };
-    let range = recs
-        .iter()
-        .flat_map(|r| r.x.iter())
-        .fold(0.0f64, |a, v| a.max(v.abs()))
-        .max(1e-12);
-    let cost = |p: &[f64; 2]| {
-        let (b, g) = bg(p, range);
-        linear_fit(recs, b, g, m).map_or(f64::INFINITY, |(_, r)| r)
+    let (b, gamma, v0) = match structure {
+        Structure::BoucWen => {
+            let range = recs
+                .iter()
+                .flat_map(|r| r.x.iter())
+                .fold(0.0f64, |a, v| a.max(v.abs()))
+                .max(1e-12);
+            let cost = |p: &[f64; 2]| {
+                let (b, g) = bg(p, range);
+                linear_fit(recs, structure, (b, g, 0.0), m).map_or(f64::INFINITY, |(_, r)| r)
+            };
+            let grid: Vec<[f64; 2]> = [1.0f64, 3.0, 10.0, 30.0, 100.0, 300.0]
+                .iter()
+                .flat_map(|&br| [-0.5f64, 0.0, 0.5].map(|q| [br.ln(), q]))
+                .collect();
+            let costs: Vec<f64> = grid.par_iter().map(|p| cost(p)).collect();
+            let best = (0..grid.len()).min_by(|&a, &b| costs[a].total_cmp(&costs[b]))?;
+            let p = nelder_mead(&cost, grid[best], 0.3, 200);
+            let (b, g) = bg(&p, range);
+            (b, g, 0.0)
+        }
+        Structure::Bingham => {
+            let cost = |lv: f64| {
+                linear_fit(recs, structure, (0.0, 0.0, lv.exp()), m)
+                    .map_or(f64::INFINITY, |(_, r)| r)
+            };
+            let grid: Vec<f64> = [0.5f64, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0]
+                .iter()
+                .map(|v| v.ln())
+                .collect();
+            let costs: Vec<f64> = grid.par_iter().map(|&p| cost(p)).collect();
+            let best = (0..grid.len()).min_by(|&a, &b| costs[a].total_cmp(&costs[b]))?;
+            let lv = golden(&cost, grid[best] - 0.8, grid[best] + 0.8, 40);
+            (0.0, 0.0, lv.exp())
+        }
     };
-    let grid: Vec<[f64; 2]> = [1.0f64, 3.0, 10.0, 30.0, 100.0, 300.0]
-        .iter()
-        .flat_map(|&br| [-0.5f64, 0.0, 0.5].map(|q| [br.ln(), q]))
-        .collect();
-    let costs: Vec<f64> = grid.par_iter().map(|p| cost(p)).collect();
-    let best = (0..grid.len()).min_by(|&a, &b| costs[a].total_cmp(&costs[b]))?;
-    let p = nelder_mead(&cost, grid[best], 0.3, 200);
-    let (b, gamma) = bg(&p, range);
-    let (coef, train_rms_n) = linear_fit(recs, b, gamma, m)?;
+    let (coef, train_rms_n) = linear_fit(recs, structure, (b, gamma, v0), m)?;
     Some(SpencerFit {
+        structure,
+        v0,
         b,
         gamma,
         coef,
@@ -535,7 +661,10 @@ impl PerCurrent {
 }
 
 /// Fits one model per distinct training current.
-pub fn fit_per_current(recs: &[DamperRecord]) -> Result<PerCurrent, MrDamperError> {
+pub fn fit_per_current(
+    recs: &[DamperRecord],
+    structure: Structure,
+) -> Result<PerCurrent, MrDamperError> {
     let mut currents: Vec<f64> = recs.iter().map(|r| r.current).collect();
     currents.sort_by(f64::total_cmp);
     currents.dedup();
@@ -543,7 +672,7 @@ pub fn fit_per_current(recs: &[DamperRecord]) -> Result<PerCurrent, MrDamperErro
         .par_iter()
         .map(|&i| {
             let mine: Vec<&DamperRecord> = recs.iter().filter(|r| r.current == i).collect();
-            fit_spencer(&mine, false)
+            fit_structure(&mine, structure, false)
         })
         .collect();
     let mut out = Vec::new();
@@ -659,70 +788,155 @@ pub fn score(current: f64, measured: &[f64], predicted: Option<&[f64]>) -> Curre
     }
 }
 
-/// Free-run predictions of every model on the test record, per current.
+/// One grey-box variant: a structure, scheduled (one model, affine in I) or per current
+/// (interpolated), its fit and its test scores and predictions.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Predictions {
-    /// (current, scheduled grey-box, per-current grey-box) at the full rate.
-    pub greybox: Vec<(f64, Vec<f64>, Vec<f64>)>,
-    /// (current, NARX at the decimated rate; `None` when diverged).
-    pub narx: Vec<(f64, Option<Vec<f64>>)>,
+pub struct GreyBoxVariant {
+    pub structure: Structure,
+    pub scheduled: bool,
+    /// Scheduled: the one fit; per current: empty (see `per_current`).
+    pub fit: Option<SpencerFit>,
+    pub per_current: Option<PerCurrent>,
+    /// Leave-one-test-out RMS (N) on the training records (scheduled variants only).
+    pub cv_rms_n: Option<f64>,
+    pub scores: Vec<CurrentScore>,
+    /// Free run on the test record per current (1 ms).
+    pub predictions: Vec<Vec<f64>>,
+}
+
+impl GreyBoxVariant {
+    /// `bouc-wen scheduled`, `bingham per-current`…
+    pub fn name(&self) -> String {
+        format!(
+            "{} {}",
+            self.structure.as_str(),
+            if self.scheduled {
+                "scheduled"
+            } else {
+                "per-current"
+            }
+        )
+    }
+
+    /// The parameters at current `i`.
+    pub fn at(&self, i: f64) -> Option<SpencerParams> {
+        match (&self.fit, &self.per_current) {
+            (Some(f), _) => Some(f.at(i)),
+            (None, Some(p)) => Some(p.at(i)),
+            _ => None,
+        }
+    }
 }
 
 /// Everything the study measures.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MrDamperResult {
     pub narx: Vec<CurrentScore>,
-    /// The scheduled grey-box (the headline).
-    pub greybox: Vec<CurrentScore>,
-    /// One grey-box per training current, interpolated.
-    pub greybox_per_current: Vec<CurrentScore>,
-    pub scheduled: SpencerFit,
-    pub per_current: PerCurrent,
+    /// NARX free runs (10 ms; `None` when diverged).
+    pub narx_predictions: Vec<Option<Vec<f64>>>,
+    /// Every grey-box variant; `greybox[headline]` is the one chosen by cross-validation on
+    /// the training records (lowest `cv_rms_n` among the scheduled variants).
+    pub greybox: Vec<GreyBoxVariant>,
+    pub headline: usize,
     pub narx_seconds: f64,
     pub greybox_seconds: f64,
     pub train_samples: usize,
     pub test_samples: usize,
-    pub predictions: Predictions,
 }
 
-/// The grey-box part: fits (scheduled and per current) and their test scores.
-pub fn run_greybox(
-    data: &MrDamperData,
-) -> Result<
-    (
-        SpencerFit,
-        PerCurrent,
-        Vec<CurrentScore>,
-        Vec<CurrentScore>,
-        Vec<(f64, Vec<f64>, Vec<f64>)>,
-    ),
-    MrDamperError,
-> {
-    let all: Vec<&DamperRecord> = data.train.iter().collect();
-    let scheduled = fit_spencer(&all, true).ok_or(MrDamperError::NoCurrent {
-        current: f64::NAN,
-        have: "(the scheduled fit failed: non-finite least squares)".into(),
-    })?;
-    let per = fit_per_current(&data.train)?;
-    let t = &data.test;
-    let mut s1 = Vec::new();
-    let mut s2 = Vec::new();
-    let mut preds = Vec::new();
-    for (i, f) in &t.forces {
-        let a = scheduled.at(*i).simulate(&t.x, t.ts);
-        let b = per.at(*i).simulate(&t.x, t.ts);
-        s1.push(score(*i, f, Some(&a)));
-        s2.push(score(*i, f, Some(&b)));
-        preds.push((*i, a, b));
+/// Leave-one-test-out cross-validation of a scheduled structure on the training records:
+/// for each test group (e.g. all 1 Hz records), fit on the others and run the held-out
+/// records from rest; the pooled RMS error (N). `None` with fewer than two groups.
+pub fn cross_validate(recs: &[DamperRecord], structure: Structure) -> Option<f64> {
+    let mut groups: Vec<&str> = recs.iter().map(|r| r.group.as_str()).collect();
+    groups.sort_unstable();
+    groups.dedup();
+    if groups.len() < 2 {
+        return None;
     }
-    Ok((scheduled, per, s1, s2, preds))
+    let parts: Vec<Option<(f64, usize)>> = groups
+        .par_iter()
+        .map(|g| {
+            let train: Vec<&DamperRecord> = recs.iter().filter(|r| r.group != *g).collect();
+            let fit = fit_structure(&train, structure, true)?;
+            let mut sse = 0.0;
+            let mut n = 0;
+            for r in recs.iter().filter(|r| r.group == *g) {
+                let p = fit.at(r.current).simulate(&r.x, r.ts);
+                sse += p
+                    .iter()
+                    .zip(&r.f)
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum::<f64>();
+                n += r.f.len();
+            }
+            Some((sse, n))
+        })
+        .collect();
+    let (mut sse, mut n) = (0.0, 0usize);
+    for p in parts {
+        let (s, k) = p?;
+        sse += s;
+        n += k;
+    }
+    let rms = (sse / n.max(1) as f64).sqrt();
+    rms.is_finite().then_some(rms)
+}
+
+fn failed(what: &str) -> MrDamperError {
+    MrDamperError::NoCurrent {
+        current: f64::NAN,
+        have: format!("(the {what} fit failed: non-finite least squares)"),
+    }
+}
+
+/// The grey-box part: every structure, scheduled and per current, scored on the test record;
+/// the headline is the scheduled structure with the lowest cross-validation error on the
+/// training records (the test record plays no part in the choice).
+pub fn run_greybox(data: &MrDamperData) -> Result<(Vec<GreyBoxVariant>, usize), MrDamperError> {
+    let all: Vec<&DamperRecord> = data.train.iter().collect();
+    let t = &data.test;
+    let mut out = Vec::new();
+    for structure in [Structure::BoucWen, Structure::Bingham] {
+        let fit = fit_structure(&all, structure, true).ok_or_else(|| failed("scheduled"))?;
+        let cv = cross_validate(&data.train, structure);
+        let per = fit_per_current(&data.train, structure)?;
+        for (scheduled, fit, per) in [(true, Some(fit), None), (false, None, Some(per))] {
+            let mut v = GreyBoxVariant {
+                structure,
+                scheduled,
+                fit,
+                per_current: per,
+                cv_rms_n: if scheduled { cv } else { None },
+                scores: Vec::new(),
+                predictions: Vec::new(),
+            };
+            for (i, f) in &t.forces {
+                let p = v
+                    .at(*i)
+                    .ok_or_else(|| failed("grey-box"))?
+                    .simulate(&t.x, t.ts);
+                v.scores.push(score(*i, f, Some(&p)));
+                v.predictions.push(p);
+            }
+            out.push(v);
+        }
+    }
+    let headline = (0..out.len())
+        .filter(|&k| out[k].scheduled)
+        .min_by(|&a, &b| {
+            let c = |k: usize| out[k].cv_rms_n.unwrap_or(f64::INFINITY);
+            c(a).total_cmp(&c(b))
+        })
+        .unwrap_or(0);
+    Ok((out, headline))
 }
 
 /// The NARX part: free run per current on the decimated test record.
 pub fn score_narx(
     model: &FittedNarx,
     data: &MrDamperData,
-) -> Result<(Vec<CurrentScore>, Vec<(f64, Option<Vec<f64>>)>), MrDamperError> {
+) -> Result<(Vec<CurrentScore>, Vec<Option<Vec<f64>>>), MrDamperError> {
     let t = &data.test;
     let mut scores = Vec::new();
     let mut preds = Vec::new();
@@ -733,7 +947,7 @@ pub fn score_narx(
         let measured = decimate(f, NARX_DECIMATION);
         let pred = p.diverged_at.is_none().then(|| p.values.clone());
         scores.push(score(*i, &measured, pred.as_deref()));
-        preds.push((*i, pred));
+        preds.push(pred);
     }
     Ok((scores, preds))
 }
@@ -742,26 +956,21 @@ pub fn score_narx(
 /// record per current.
 pub fn run(data: &MrDamperData) -> Result<MrDamperResult, MrDamperError> {
     let t = std::time::Instant::now();
-    let (scheduled, per_current, greybox, greybox_per_current, gp) = run_greybox(data)?;
+    let (greybox, headline) = run_greybox(data)?;
     let greybox_seconds = t.elapsed().as_secs_f64();
     let t = std::time::Instant::now();
     let model = fit_narx(data)?;
     let narx_seconds = t.elapsed().as_secs_f64();
-    let (narx, np) = score_narx(&model, data)?;
+    let (narx, narx_predictions) = score_narx(&model, data)?;
     Ok(MrDamperResult {
         narx,
+        narx_predictions,
         greybox,
-        greybox_per_current,
-        scheduled,
-        per_current,
+        headline,
         narx_seconds,
         greybox_seconds,
         train_samples: data.train.iter().map(|r| r.x.len()).sum(),
         test_samples: data.test.x.len(),
-        predictions: Predictions {
-            greybox: gp,
-            narx: np,
-        },
     })
 }
 
@@ -776,6 +985,7 @@ mod tests {
         let f = p.simulate(&x, ts);
         DamperRecord {
             path: PathBuf::from(format!("sim{i}")),
+            group: format!("g{}", n % 2),
             x,
             f,
             current: i,
@@ -786,6 +996,8 @@ mod tests {
     #[test]
     fn spencer_fit_recovers_a_simulated_damper() {
         let truth = |i: f64| SpencerParams {
+            structure: Structure::BoucWen,
+            v0: 0.0,
             c0: 1.0 + 2.0 * i,
             k0: 3.0,
             alpha: 50.0 + 100.0 * i,
@@ -810,7 +1022,7 @@ mod tests {
             (p.c0 - t.c0).abs() < 1e-3 && (p.alpha - t.alpha).abs() < 1e-2,
             "{p:?}"
         );
-        let per = fit_per_current(&recs).unwrap();
+        let per = fit_per_current(&recs, Structure::BoucWen).unwrap();
         let q = per.at(0.25);
         assert!((q.c0 - t.c0).abs() < 1e-3, "{q:?}");
     }

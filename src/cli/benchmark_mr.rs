@@ -7,7 +7,7 @@
 //! ## References
 //! - B. F. Spencer Jr. et al., J. Eng. Mech. 123(3):230-238, 1997.
 
-use crate::benchmark::mr_damper::{self, CurrentScore, MrDamperResult, NARX_DECIMATION};
+use crate::benchmark::mr_damper::{self, CurrentScore, MrDamperResult, Structure, NARX_DECIMATION};
 use crate::data::OutputGuard;
 use anyhow::Context;
 use std::fmt::Write as _;
@@ -31,13 +31,20 @@ fn json_scores(v: &[CurrentScore]) -> String {
     format!("{{{}}}", items.join(", "))
 }
 
-/// The `--json` object: `narx`, `greybox` (scheduled), `greybox_per_current`, training times.
+/// The `--json` object: `narx`, `greybox` (the headline variant, chosen by cross-validation
+/// on the training records), `greybox_model`, every variant under `greybox_all`, training times.
 pub fn json_line(r: &MrDamperResult) -> String {
+    let all: Vec<String> = r
+        .greybox
+        .iter()
+        .map(|v| format!("\"{}\": {}", v.name(), json_scores(&v.scores)))
+        .collect();
     format!(
-        "{{\"narx\": {}, \"greybox\": {}, \"greybox_per_current\": {}, \"narx_train_s\": {:.1}, \"greybox_train_s\": {:.1}}}",
+        "{{\"narx\": {}, \"greybox\": {}, \"greybox_model\": \"{}\", \"greybox_all\": {{{}}}, \"narx_train_s\": {:.1}, \"greybox_train_s\": {:.1}}}",
         json_scores(&r.narx),
-        json_scores(&r.greybox),
-        json_scores(&r.greybox_per_current),
+        json_scores(&r.greybox[r.headline].scores),
+        r.greybox[r.headline].name(),
+        all.join(", "),
         r.narx_seconds,
         r.greybox_seconds
     )
@@ -69,45 +76,66 @@ pub fn table(r: &MrDamperResult, data_dir: &Path) -> String {
         mr_damper::NARX_NEURONS,
         mr_damper::NARX_SEED
     );
-    s += "grey-box: F = c0 dx/dt + k0 x + alpha z + f0, z Bouc-Wen (n = 1) on x (Spencer et al. 1997);\n";
-    s += "  scheduled: (B, Gamma) shared, c0, k0, alpha, f0 affine in I; per-current: one fit per training current, parameters interpolated in I\n\n";
-    let _ = writeln!(
-        s,
-        "{:>6} | {:>17} | {:>17} | {:>17}",
-        "I (A)", "NARX", "grey-box sched.", "grey-box per-I"
-    );
-    let _ = writeln!(
-        s,
-        "{:>6} | {:>8} {:>8} | {:>8} {:>8} | {:>8} {:>8}",
-        "", "R^2", "RMS (N)", "R^2", "RMS (N)", "R^2", "RMS (N)"
-    );
-    for k in 0..r.greybox.len() {
-        let _ = writeln!(
-            s,
-            "{:>6} | {} | {} | {}",
-            r.greybox[k].current,
-            cell(&r.narx[k]),
-            cell(&r.greybox[k]),
-            cell(&r.greybox_per_current[k])
-        );
+    s += "grey-box: F = c0 dx/dt + k0 x + alpha g + f0; bouc-wen: g = z, Bouc-Wen (n = 1) on x (Spencer et al. 1997);\n";
+    s += "  bingham: g = tanh((dx/dt) / v0) (smoothed Bingham plastic); scheduled: one model, c0, k0, alpha, f0 affine in I;\n";
+    s += "  per-current: one fit per training current, every parameter interpolated linearly in I\n\n";
+    let _ = write!(s, "{:>6} | {:>17}", "I (A)", "NARX");
+    for v in &r.greybox {
+        let _ = write!(s, " | {:>21}", v.name());
+    }
+    s += "\n";
+    let _ = write!(s, "{:>6} | {:>8} {:>8}", "", "R^2", "RMS (N)");
+    for _ in &r.greybox {
+        let _ = write!(s, " |     {:>8} {:>8}", "R^2", "RMS (N)");
+    }
+    s += "\n";
+    for k in 0..r.narx.len() {
+        let _ = write!(s, "{:>6} | {}", r.narx[k].current, cell(&r.narx[k]));
+        for v in &r.greybox {
+            let _ = write!(s, " |     {}", cell(&v.scores[k]));
+        }
+        s += "\n";
     }
     let _ = writeln!(
         s,
-        "\ntraining time: NARX {:.1} s, grey-box (both) {:.1} s",
-        r.narx_seconds, r.greybox_seconds
+        "\ngrey-box choice (training records only): leave-one-test-out RMS, scheduled: {}; headline: {}",
+        r.greybox
+            .iter()
+            .filter_map(|v| v.cv_rms_n.map(|c| format!("{} {c:.1} N", v.structure.as_str())))
+            .collect::<Vec<_>>()
+            .join(", "),
+        r.greybox[r.headline].name()
     );
-    let f = &r.scheduled;
     let _ = writeln!(
         s,
-        "scheduled grey-box (training RMS {:.1} N): B {:.4} 1/mm, Gamma {:.4} 1/mm; c0 {:.3} + {:.3} I N s/mm, k0 {:.2} + {:.2} I N/mm, alpha {:.1} + {:.1} I N/mm, f0 {:.1} + {:.1} I N",
-        f.train_rms_n, f.b, f.gamma, f.coef[0], f.coef[4], f.coef[1], f.coef[5], f.coef[2], f.coef[6], f.coef[3], f.coef[7]
+        "training time: NARX {:.1} s, grey-box (all four, with cross-validation) {:.1} s",
+        r.narx_seconds, r.greybox_seconds
     );
-    for (i, p) in &r.per_current.fits {
-        let _ = writeln!(
-            s,
-            "  per-current {i:.2} A (training RMS {:.1} N): B {:.4}, Gamma {:.4}, c0 {:.3}, k0 {:.2}, alpha {:.1}, f0 {:.1}",
-            p.train_rms_n, p.b, p.gamma, p.coef[0], p.coef[1], p.coef[2], p.coef[3]
-        );
+    for v in &r.greybox {
+        if let Some(f) = &v.fit {
+            let shape = match f.structure {
+                Structure::BoucWen => format!("B {:.4} 1/mm, Gamma {:.4} 1/mm", f.b, f.gamma),
+                Structure::Bingham => format!("v0 {:.3} mm/s", f.v0),
+            };
+            let _ = writeln!(
+                s,
+                "{} (training RMS {:.1} N): {shape}; c0 {:.3} + {:.3} I N s/mm, k0 {:.2} + {:.2} I N/mm, alpha {:.1} + {:.1} I N, f0 {:.1} + {:.1} I N",
+                v.name(), f.train_rms_n, f.coef[0], f.coef[4], f.coef[1], f.coef[5], f.coef[2], f.coef[6], f.coef[3], f.coef[7]
+            );
+        }
+        if let Some(pc) = &v.per_current {
+            for (i, f) in &pc.fits {
+                let shape = match f.structure {
+                    Structure::BoucWen => format!("B {:.4}, Gamma {:.4}", f.b, f.gamma),
+                    Structure::Bingham => format!("v0 {:.3}", f.v0),
+                };
+                let _ = writeln!(
+                    s,
+                    "  {} {i:.2} A (training RMS {:.1} N): {shape}, c0 {:.3}, k0 {:.2}, alpha {:.1}, f0 {:.1}",
+                    v.name(), f.train_rms_n, f.coef[0], f.coef[1], f.coef[2], f.coef[3]
+                );
+            }
+        }
     }
     s
 }
@@ -117,23 +145,26 @@ fn write_out(r: &MrDamperResult, dir: &Path, force: bool) -> anyhow::Result<()> 
         anyhow::bail!("--out {}: no such folder (create it first)", dir.display());
     }
     let mut guard = OutputGuard::new(force);
-    for ((i, sched, per), (_, narx)) in r.predictions.greybox.iter().zip(&r.predictions.narx) {
+    for (k, (i, _)) in r.greybox[0]
+        .scores
+        .iter()
+        .map(|s| (s.current, ()))
+        .enumerate()
+    {
         let path = dir.join(format!("greybox_I{i:.1}A.csv"));
-        let t: Vec<f64> = (0..sched.len()).map(|k| k as f64 * 1e-3).collect();
-        let text = crate::data::format_csv(
-            &path,
-            &[
-                "t_s".into(),
-                "F_scheduled_N".into(),
-                "F_per_current_N".into(),
-            ],
-            &[t, sched.clone(), per.clone()],
-        )?;
+        let n = r.greybox[0].predictions[k].len();
+        let mut names = vec!["t_s".to_string()];
+        let mut cols = vec![(0..n).map(|j| j as f64 * 1e-3).collect::<Vec<f64>>()];
+        for v in &r.greybox {
+            names.push(format!("F_{}_N", v.name().replace(' ', "_")));
+            cols.push(v.predictions[k].clone());
+        }
+        let text = crate::data::format_csv(&path, &names, &cols)?;
         guard.stage(&path, text.as_bytes())?;
-        if let Some(p) = narx {
+        if let Some(p) = &r.narx_predictions[k] {
             let path = dir.join(format!("narx_I{i:.1}A.csv"));
             let t: Vec<f64> = (0..p.len())
-                .map(|k| k as f64 * 1e-3 * NARX_DECIMATION as f64)
+                .map(|j| j as f64 * 1e-3 * NARX_DECIMATION as f64)
                 .collect();
             let text =
                 crate::data::format_csv(&path, &["t_s".into(), "F_N".into()], &[t, p.clone()])?;
@@ -145,7 +176,6 @@ fn write_out(r: &MrDamperResult, dir: &Path, force: bool) -> anyhow::Result<()> 
     guard.commit()?;
     Ok(())
 }
-
 pub fn run(data_dir: &Path, json: bool, out: Option<&Path>, force: bool) -> anyhow::Result<()> {
     let data = mr_damper::load(data_dir)?;
     let r = mr_damper::run(&data).context("the MR damper study")?;

@@ -32,6 +32,10 @@ use crate::metrics::{branch_gap, rms};
 use serde::Serialize;
 pub use whiteness::{whiteness, Whiteness};
 
+/// A smaller bank is named instead of the top one when the top bank explains less than this
+/// share of what is left after the smaller one (out of sample).
+pub const PARSIMONY: f64 = 0.05;
+
 /// Knobs of the decision rule.
 #[derive(Debug, Clone, Copy)]
 pub struct DiagnoseOptions {
@@ -166,13 +170,58 @@ pub fn diagnose(
         scores.sort_by(|a, b| b.explained.total_cmp(&a.explained));
         let w = whiteness(&e, &named, opts.max_lag);
         let top = scores.iter().find(|s| !s.in_model);
-        let missing = top
+        let mut missing = top
             .filter(|s| !w.white && s.explained >= opts.threshold)
             .map(|s| s.effect);
+        // Parsimony: a smaller bank that leaves the top bank almost nothing to add (nested
+        // out-of-sample test) names the simpler effect (e.g. a dashpot rather than a mode when
+        // the model is a static gain, whose prediction's lags contain the input's rate).
+        let mut simpler_than: Option<(EffectName, f64)> = None;
+        if let (Some(m), Some(top)) = (missing, top) {
+            let bank_of = |e: EffectName| banks.iter().find(|b| b.effect == e);
+            if let Some(tb) = bank_of(m) {
+                let mut cands: Vec<&EffectScore> = scores
+                    .iter()
+                    .filter(|s| !s.in_model && s.effect != m && s.explained >= opts.threshold)
+                    .filter(|s| {
+                        bank_of(s.effect).is_some_and(|b| b.signals.len() < tb.signals.len())
+                    })
+                    .collect();
+                cands.sort_by_key(|s| bank_of(s.effect).map_or(usize::MAX, |b| b.signals.len()));
+                let top_cols: Vec<&[f64]> = tb.signals.iter().map(Vec::as_slice).collect();
+                for c in cands {
+                    let Some(cb) = bank_of(c.effect) else {
+                        continue;
+                    };
+                    let mut base = baseline.clone();
+                    base.extend(cb.signals.iter().map(Vec::as_slice));
+                    if let Some(x) = regression::explained_out_of_sample(&e, &base, &top_cols) {
+                        if x.fraction < PARSIMONY {
+                            missing = Some(c.effect);
+                            simpler_than = Some((top.effect, x.fraction));
+                            break;
+                        }
+                    }
+                }
+            }
+        }
         let unit = unit_of(&y.name);
         let mut messages = Vec::new();
         for s in scores.iter().filter(|s| !s.in_model) {
-            messages.push(describe(rec, o, direct, &e, s, &unit));
+            let mut msg = describe(rec, o, direct, &e, s, &unit);
+            if let (Some(m), Some((t, f))) = (missing, simpler_than) {
+                if s.effect == m {
+                    let adds = if f > 0.0 {
+                        format!("only {:.1} %", 100.0 * f)
+                    } else {
+                        "nothing".to_string()
+                    };
+                    msg += &format!(
+                        " ({t} explains about as much but adds {adds} on top of {m} out of sample: the simpler effect, the smaller bank, is named)"
+                    );
+                }
+            }
+            messages.push(msg);
         }
         outputs.push(OutputDiagnosis {
             output: y.name.clone(),

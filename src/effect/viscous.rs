@@ -95,13 +95,17 @@ fn low_pass(x: &[f64], tau: f64, ts: f64) -> Vec<f64> {
         .collect()
 }
 
-/// Basis bank: the rate of the direct input and two low-passed versions of it (time constants
-/// 5 and 25 samples): what a dashpot, possibly behind a fast mode, adds to a model.
+/// Time constants (in samples) of the bank's low-passed rates.
+pub const BANK_TAUS: [f64; 2] = [5.0, 25.0];
+
+/// Basis bank: the rate of the direct input and low-passed versions of it ([`BANK_TAUS`]
+/// samples): what a dashpot adds to a model, alone or behind a compliance (a Maxwell element,
+/// spring k in series with dashpot c: force = c du/dt low-passed with tau = c / k).
 pub fn basis(ctx: &super::basis::BasisContext) -> super::basis::BasisBank {
     let mut bank = super::basis::BasisBank::new(super::EffectName::Viscous);
     let u = ctx.inputs[ctx.direct];
     let r = rate(u, ctx.ts);
-    for m in [5.0, 25.0] {
+    for m in BANK_TAUS {
         let tau = m * ctx.ts;
         bank.push(
             format!("rate(u, low-pass tau={tau:.4} s)"),
