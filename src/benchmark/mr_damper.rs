@@ -608,7 +608,7 @@ pub fn fit_structure(
                 .iter()
                 .flat_map(|&br| [-0.5f64, 0.0, 0.5].map(|q| [br.ln(), q]))
                 .collect();
-            let costs: Vec<f64> = grid.par_iter().map(|p| cost(p)).collect();
+            let costs: Vec<f64> = grid.par_iter().map(&cost).collect();
             let best = (0..grid.len()).min_by(|&a, &b| costs[a].total_cmp(&costs[b]))?;
             let p = nelder_mead(&cost, grid[best], 0.3, 200);
             let (b, g) = bg(&p, range);
@@ -932,11 +932,14 @@ pub fn run_greybox(data: &MrDamperData) -> Result<(Vec<GreyBoxVariant>, usize), 
     Ok((out, headline))
 }
 
+/// NARX free runs per current (`None` when diverged).
+pub type NarxPredictions = Vec<Option<Vec<f64>>>;
+
 /// The NARX part: free run per current on the decimated test record.
 pub fn score_narx(
     model: &FittedNarx,
     data: &MrDamperData,
-) -> Result<(Vec<CurrentScore>, Vec<Option<Vec<f64>>>), MrDamperError> {
+) -> Result<(Vec<CurrentScore>, NarxPredictions), MrDamperError> {
     let t = &data.test;
     let mut scores = Vec::new();
     let mut preds = Vec::new();

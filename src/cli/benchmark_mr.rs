@@ -18,7 +18,7 @@ fn json_scores(v: &[CurrentScore]) -> String {
     let items: Vec<String> = v
         .iter()
         .map(|s| {
-            let key = format!("{}", s.current);
+            let key = format!("{:.1}", s.current);
             match (s.r2, s.rms_n) {
                 (Some(r2), Some(rms)) => {
                     format!("\"{key}\": {{\"r2\": {r2:e}, \"rms_n\": {rms:e}}}")
@@ -90,7 +90,7 @@ pub fn table(r: &MrDamperResult, data_dir: &Path) -> String {
     }
     s += "\n";
     for k in 0..r.narx.len() {
-        let _ = write!(s, "{:>6} | {}", r.narx[k].current, cell(&r.narx[k]));
+        let _ = write!(s, "{:>6.1} | {}", r.narx[k].current, cell(&r.narx[k]));
         for v in &r.greybox {
             let _ = write!(s, " |     {}", cell(&v.scores[k]));
         }
