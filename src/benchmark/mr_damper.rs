@@ -13,15 +13,19 @@
 //! - every model is run from rest on each record separately: no state, regressor or window ever
 //!   crosses a record boundary.
 //!
-//! Grey-box: Spencer's simple Bouc-Wen model F = c0 dx/dt + k0 x + alpha z + f0, z the library's
-//! Bouc-Wen state (n = 1, A = 1, mm) on x, dx/dt the library's viscous operator (backward
-//! difference). For fixed (B, Gamma) the model is linear in (c0, k0, alpha, f0): least squares
-//! inside, Nelder-Mead on (ln B, atanh(Gamma / B)) outside (variable projection). Two ways to
-//! cover the currents:
-//! - `scheduled` (the headline): one model for all currents, (B, Gamma) shared and
-//!   c0, k0, alpha, f0 affine in I (Spencer et al.'s c0 = c0a + c0b u, alpha = alpha_a + alpha_b u);
+//! Grey-box: F = c0 dx/dt + k0 x + alpha g + f0, dx/dt the library's viscous operator (backward
+//! difference), g either the library's Bouc-Wen state on x (n = 1, A = 1, mm; Spencer's simple
+//! Bouc-Wen model, [`Structure::BoucWen`]) or tanh((dx/dt) / v0) (a smoothed Bingham plastic,
+//! [`Structure::Bingham`]). For fixed (B, Gamma) or v0 the model is linear in
+//! (c0, k0, alpha, f0): least squares inside, Nelder-Mead or golden section outside (variable
+//! projection). Two ways to cover the currents:
+//! - `scheduled`: one model for all currents, (B, Gamma) or v0 shared and c0, k0, alpha, f0
+//!   affine in I (Spencer et al.'s c0 = c0a + c0b u, alpha = alpha_a + alpha_b u);
 //! - `per-current`: one model per training current, every parameter interpolated linearly in I
 //!   between the two neighbouring training currents.
+//!
+//! The headline grey-box is the scheduled structure with the lowest leave-one-test-out error on
+//! the training records ([`cross_validate`]); the test record plays no part in the choice.
 //!
 //! NARX: inputs x and I (a constant column), output F, trained on the ten records at once
 //! ([`NarxConfig::fit_records`]) after subsampling every record by [`NARX_DECIMATION`] (1 ms ->

@@ -189,3 +189,30 @@ pub fn run(data_dir: &Path, json: bool, out: Option<&Path>, force: bool) -> anyh
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn json_keys_are_the_currents_and_diverged_is_not_a_number() {
+        let v = vec![
+            CurrentScore {
+                current: 0.2,
+                r2: Some(0.9),
+                rms_n: Some(12.5),
+            },
+            CurrentScore {
+                current: 1.0,
+                r2: None,
+                rms_n: None,
+            },
+        ];
+        let text = json_scores(&v);
+        let j: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(j["0.2"]["r2"].as_f64(), Some(0.9));
+        assert_eq!(j["0.2"]["rms_n"].as_f64(), Some(12.5));
+        assert_eq!(j["1.0"]["diverged"].as_bool(), Some(true));
+        assert!(j["1.0"].get("rms_n").is_none());
+    }
+}
