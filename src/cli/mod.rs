@@ -39,7 +39,7 @@ pub enum Command {
     Sweep(sweep::SweepArgs),
     /// Predict a record with a model file (one-step-ahead or free run).
     Predict(predict::PredictArgs),
-    /// Fit a grey-box model (hysteresis, creep, dynamics, coupling) to a record.
+    /// Fit a grey-box model (hysteresis, creep, dynamics, coupling, viscous) to a record.
     Fit(fit::Args),
     /// Compare a model with a record: scores and where it fails.
     Compare(compare::Args),
