@@ -79,6 +79,9 @@ pub fn plant_effects(plant: &Plant) -> Vec<EffectName> {
                 if p.dynamics.is_some() {
                     add(EffectName::Dynamics);
                 }
+                if p.viscous.is_some() {
+                    add(EffectName::Viscous);
+                }
             }
             if c.creep.is_some() {
                 add(EffectName::Creep);

@@ -259,9 +259,12 @@ fn diagnose_and_compare_work_on_a_narx_model() {
         .iter()
         .map(|r| r["effect"].as_str().unwrap())
         .collect();
-    assert_eq!(ranked.len(), 3, "{v}");
+    assert_eq!(ranked.len(), 4, "{v}");
     assert!(
-        ranked.contains(&"hysteresis") && ranked.contains(&"creep") && ranked.contains(&"dynamics")
+        ranked.contains(&"hysteresis")
+            && ranked.contains(&"creep")
+            && ranked.contains(&"dynamics")
+            && ranked.contains(&"viscous")
     );
     let o = run(&["compare", "--data", s(&data), "--model", s(&m), "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));

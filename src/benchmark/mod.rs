@@ -24,6 +24,8 @@
 //!   doi 10.4121/12967592.
 //! - K. Levenberg, Q. Appl. Math. 2:164-168, 1944; D.W. Marquardt, J. SIAM 11(2):431-441, 1963.
 
+pub mod mr_damper;
+
 use crate::data::{read_csv, DataError, Record};
 use crate::plant::ode::bouc_wen_benchmark::IntegratorKind;
 use crate::plant::ode::{BoucWenBenchmarkSpec, OdeError};

@@ -19,19 +19,38 @@ use std::path::PathBuf;
 pub enum Which {
     /// Bouc-Wen hysteretic benchmark (Noël & Schoukens 2016).
     Boucwen,
+    /// Measured MR damper (mr-damper-utfsm): train on the 1 ms sine records, test on the
+    /// earthquake record, per current.
+    MrDamper,
 }
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The benchmark.
     pub which: Which,
-    /// Folder with boucwen_train_multisine_dynonet.csv, boucwen_test_multisine.csv and
-    /// boucwen_test_sinesweep.csv.
-    #[arg(long, default_value = "../shared/data/boucwen-benchmark")]
-    pub data_dir: PathBuf,
+    /// The data folder. boucwen: boucwen_train_multisine_dynonet.csv, boucwen_test_multisine.csv
+    /// and boucwen_test_sinesweep.csv (default ../shared/data/boucwen-benchmark); mr-damper:
+    /// earthquake_validation.csv and the 1 ms sine records (default ../shared/data/mr-damper-utfsm).
+    #[arg(long)]
+    pub data_dir: Option<PathBuf>,
     /// Print only `{"narx": {...}, "greybox": {...}}`.
     #[arg(long)]
     pub json: bool,
+    /// mr-damper: write the free-run predictions (one CSV per current) and the result JSON
+    /// into this folder (which must exist).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Overwrite existing files in --out.
+    #[arg(long)]
+    pub force: bool,
+}
+
+/// Default data folder of each benchmark.
+pub fn default_data_dir(which: Which) -> PathBuf {
+    PathBuf::from(match which {
+        Which::Boucwen => "../shared/data/boucwen-benchmark",
+        Which::MrDamper => "../shared/data/mr-damper-utfsm",
+    })
 }
 
 /// NARX seed (explicit: same command, same numbers).
@@ -136,8 +155,17 @@ pub fn json_line(narx: &TestScores, greybox: &TestScores) -> String {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let Which::Boucwen = args.which;
-    let data = benchmark::load(&args.data_dir).map_err(|e: BenchmarkError| anyhow::anyhow!(e))?;
+    let data_dir = args
+        .data_dir
+        .clone()
+        .unwrap_or_else(|| default_data_dir(args.which));
+    if args.which == Which::MrDamper {
+        return super::benchmark_mr::run(&data_dir, args.json, args.out.as_deref(), args.force);
+    }
+    if args.out.is_some() {
+        anyhow::bail!("--out is only for `benchmark mr-damper`");
+    }
+    let data = benchmark::load(&data_dir).map_err(|e: BenchmarkError| anyhow::anyhow!(e))?;
     let t = std::time::Instant::now();
     let narx = run_narx(&data)?;
     let narx_secs = t.elapsed().as_secs_f64();
@@ -152,7 +180,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     s += "Bouc-Wen benchmark (Noël & Schoukens 2016): free-run RMS error in m\n";
     s += &format!(
         "data: {} (train {} samples, multisine {} (steady state: last of {} periods), sweep {} from rest)\n\n",
-        args.data_dir.display(),
+        data_dir.display(),
         data.train.u.len(),
         data.multisine.u.len(),
         benchmark::STEADY_STATE_PERIODS,

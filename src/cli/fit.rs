@@ -14,7 +14,7 @@ use std::path::PathBuf;
 /// the fitted model from rest.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Effects: hysteresis (default operator: Prandtl-Ishlinskii plus one Bouc-Wen term; or name one: prandtl-ishlinskii, bouc-wen), creep, dynamics, coupling; `none` for a linear static model.\nThe fit uses the whole record (your choice of data) unless --train-fraction F is given.\nExample: hystbench fit --data d.csv --effects hysteresis,creep,dynamics --out model.json"
+    after_help = "Effects: hysteresis (default operator: Prandtl-Ishlinskii plus one Bouc-Wen term; or name one: prandtl-ishlinskii, bouc-wen), creep, dynamics, coupling, viscous (c du/dt); `none` for a linear static model.\nThe fit uses the whole record (your choice of data) unless --train-fraction F is given.\nExample: hystbench fit --data d.csv --effects hysteresis,creep,dynamics --out model.json"
 )]
 pub struct Args {
     /// Record (CSV with a time column `t`, inputs `u` or `u1,u2..`, outputs `y` or `y1,y2..`).

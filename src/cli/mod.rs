@@ -6,6 +6,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod benchmark;
+pub mod benchmark_mr;
 pub mod compare;
 pub mod demo;
 pub mod diagnose;
@@ -39,7 +40,7 @@ pub enum Command {
     Sweep(sweep::SweepArgs),
     /// Predict a record with a model file (one-step-ahead or free run).
     Predict(predict::PredictArgs),
-    /// Fit a grey-box model (hysteresis, creep, dynamics, coupling) to a record.
+    /// Fit a grey-box model (hysteresis, creep, dynamics, coupling, viscous) to a record.
     Fit(fit::Args),
     /// Compare a model with a record: scores and where it fails.
     Compare(compare::Args),
@@ -49,7 +50,7 @@ pub enum Command {
     Improve(improve::Args),
     /// Draw a figure (PNG or SVG): loop, time, residual-loop, parity, spectrum, sweep, ladder.
     Plot(plot::PlotArgs),
-    /// Score the NARX and grey-box models on a published benchmark (Bouc-Wen).
+    /// Score the NARX and grey-box models on a benchmark (Bouc-Wen; measured MR damper).
     Benchmark(benchmark::Args),
     /// Cut a record at its time gaps and resample each part onto a uniform grid.
     Split(split::Args),

@@ -32,6 +32,10 @@ use crate::metrics::{branch_gap, rms};
 use serde::Serialize;
 pub use whiteness::{whiteness, Whiteness};
 
+/// A smaller bank is named instead of the top one when the top bank explains less than this
+/// share of what is left after the smaller one (out of sample).
+pub const PARSIMONY: f64 = 0.05;
+
 /// Knobs of the decision rule.
 #[derive(Debug, Clone, Copy)]
 pub struct DiagnoseOptions {
@@ -173,20 +177,69 @@ pub fn diagnose(
         }
         scores.sort_by(|a, b| b.explained.total_cmp(&a.explained));
         let w = whiteness(&e, &named, opts.max_lag);
-        let candidates: Vec<EffectName> = scores
+        let mut candidates: Vec<EffectName> = scores
             .iter()
             .filter(|s| !s.in_model && !w.white && s.explained >= opts.threshold)
             .map(|s| s.effect)
             .collect();
-        let missing = scores
-            .iter()
-            .find(|s| !s.in_model)
+        let top = scores.iter().find(|s| !s.in_model);
+        let mut missing = top
             .filter(|s| candidates.contains(&s.effect))
             .map(|s| s.effect);
+        // Parsimony: a smaller bank that leaves the top bank almost nothing to add (nested
+        // out-of-sample test) names the simpler effect (e.g. a dashpot rather than a mode when
+        // the model is a static gain, whose prediction's lags contain the input's rate).
+        let mut simpler_than: Option<(EffectName, f64)> = None;
+        if let (Some(m), Some(top)) = (missing, top) {
+            let bank_of = |e: EffectName| banks.iter().find(|b| b.effect == e);
+            if let Some(tb) = bank_of(m) {
+                let mut cands: Vec<&EffectScore> = scores
+                    .iter()
+                    .filter(|s| !s.in_model && s.effect != m && s.explained >= opts.threshold)
+                    .filter(|s| {
+                        bank_of(s.effect).is_some_and(|b| b.signals.len() < tb.signals.len())
+                    })
+                    .collect();
+                cands.sort_by_key(|s| bank_of(s.effect).map_or(usize::MAX, |b| b.signals.len()));
+                let top_cols: Vec<&[f64]> = tb.signals.iter().map(Vec::as_slice).collect();
+                for c in cands {
+                    let Some(cb) = bank_of(c.effect) else {
+                        continue;
+                    };
+                    let mut base = baseline.clone();
+                    base.extend(cb.signals.iter().map(Vec::as_slice));
+                    if let Some(x) = regression::explained_out_of_sample(&e, &[&base], &top_cols) {
+                        if x.fraction < PARSIMONY {
+                            missing = Some(c.effect);
+                            simpler_than = Some((top.effect, x.fraction));
+                            break;
+                        }
+                    }
+                }
+            }
+        }
+        if let Some(m) = missing {
+            // the named effect first among the candidates
+            candidates.retain(|c| *c != m);
+            candidates.insert(0, m);
+        }
         let unit = unit_of(&y.name);
         let mut messages = Vec::new();
         for s in scores.iter().filter(|s| !s.in_model) {
-            messages.push(describe(rec, o, direct, &e, s, &unit));
+            let mut msg = describe(rec, o, direct, &e, s, &unit);
+            if let (Some(m), Some((t, f))) = (missing, simpler_than) {
+                if s.effect == m {
+                    let adds = if f > 0.0 {
+                        format!("only {:.1} %", 100.0 * f)
+                    } else {
+                        "nothing".to_string()
+                    };
+                    msg += &format!(
+                        " ({t} explains about as much but adds {adds} on top of {m} out of sample: the simpler effect, the smaller bank, is named)"
+                    );
+                }
+            }
+            messages.push(msg);
         }
         outputs.push(OutputDiagnosis {
             output: y.name.clone(),
@@ -325,6 +378,12 @@ fn describe(
             None => "the error follows slow first-order trends of the output (no holds in the record to measure the drift per decade)".to_string(),
         },
         EffectName::Dynamics => "the error follows the recent past of the output: a fast linear dynamics (a mode, a lag) is not in the model".to_string(),
+        EffectName::Viscous => format!(
+            "the error follows the rate of {} (correlation {:.2}): a force in d{}/dt (viscous damping) is not in the model",
+            rec.inputs[direct].name,
+            correlation(&crate::effect::viscous::rate(u, rec.ts), e),
+            rec.inputs[direct].name
+        ),
         EffectName::Coupling => {
             let best = rec
                 .inputs

@@ -71,6 +71,7 @@ pub fn basis_bank(effect: EffectName, ctx: &BasisContext) -> Option<BasisBank> {
         EffectName::Creep => Some(super::creep::basis(ctx)),
         EffectName::Dynamics => Some(super::dynamics::basis(ctx)),
         EffectName::Coupling => super::coupling::basis(ctx),
+        EffectName::Viscous => Some(super::viscous::basis(ctx)),
     }
 }
 
@@ -96,6 +97,8 @@ pub enum FeatureSpec {
     Resonator { input: usize, hz: f64, zeta: f64 },
     /// An input itself.
     Input { index: usize },
+    /// The rate of an input, (u(k) - u(k-1)) / Ts, 0 at the start (the viscous bank's signal).
+    Rate { input: usize },
 }
 
 impl FeatureSpec {
@@ -104,7 +107,8 @@ impl FeatureSpec {
         match *self {
             FeatureSpec::Play { input, .. }
             | FeatureSpec::FirstOrder { input, .. }
-            | FeatureSpec::Resonator { input, .. } => input,
+            | FeatureSpec::Resonator { input, .. }
+            | FeatureSpec::Rate { input } => input,
             FeatureSpec::Input { index } => index,
         }
     }
@@ -122,6 +126,7 @@ impl FeatureSpec {
                 format!("resonator({n}, {hz:.2} Hz, zeta={zeta})")
             }
             FeatureSpec::Input { .. } => n,
+            FeatureSpec::Rate { .. } => format!("rate({n})"),
         }
     }
 
@@ -139,7 +144,7 @@ impl FeatureSpec {
             FeatureSpec::Resonator { hz, zeta, .. } => {
                 hz.is_finite() && hz > 0.0 && zeta.is_finite() && zeta > 0.0
             }
-            FeatureSpec::Input { .. } => true,
+            FeatureSpec::Input { .. } | FeatureSpec::Rate { .. } => true,
         };
         if ok {
             Ok(())
@@ -174,6 +179,7 @@ impl FeatureSpec {
                 }
             }
             FeatureSpec::Input { .. } => u.to_vec(),
+            FeatureSpec::Rate { .. } => super::viscous::rate(u, ts),
         }
     }
 }
@@ -235,6 +241,7 @@ pub fn feature_specs(effect: EffectName, inputs: &[&[f64]], ts: f64) -> Vec<Feat
                     });
                 }
             }
+            EffectName::Viscous => out.push(FeatureSpec::Rate { input: j }),
             EffectName::Coupling => {
                 if inputs.len() >= 2 {
                     for r in play_thresholds(u, 4) {

@@ -31,6 +31,7 @@ pub mod hysteresis;
 pub mod noise;
 pub mod play;
 pub mod prandtl_ishlinskii;
+pub mod viscous;
 
 pub use error::EffectError;
 
@@ -58,15 +59,17 @@ pub enum EffectName {
     Creep,
     Dynamics,
     Coupling,
+    Viscous,
 }
 
 impl EffectName {
     /// Every effect, in chain order.
-    pub const ALL: [EffectName; 4] = [
+    pub const ALL: [EffectName; 5] = [
         EffectName::Hysteresis,
         EffectName::Creep,
         EffectName::Dynamics,
         EffectName::Coupling,
+        EffectName::Viscous,
     ];
 
     /// The command-line name.
@@ -76,6 +79,7 @@ impl EffectName {
             EffectName::Creep => "creep",
             EffectName::Dynamics => "dynamics",
             EffectName::Coupling => "coupling",
+            EffectName::Viscous => "viscous",
         }
     }
 }

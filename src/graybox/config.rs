@@ -66,6 +66,8 @@ pub struct GreyBoxConfig {
     pub creep: bool,
     pub dynamics: bool,
     pub coupling: bool,
+    /// A term in each path input's rate, c du/dt (viscous damping), fitted by least squares.
+    pub viscous: bool,
     pub options: FitOptions,
 }
 
@@ -93,6 +95,7 @@ impl GreyBoxConfig {
             creep,
             dynamics,
             coupling,
+            viscous: false,
             options: FitOptions::default(),
         }
     }
@@ -137,6 +140,7 @@ impl GreyBoxConfig {
                 EffectName::Creep => cfg.creep = true,
                 EffectName::Dynamics => cfg.dynamics = true,
                 EffectName::Coupling => cfg.coupling = true,
+                EffectName::Viscous => cfg.viscous = true,
             }
         }
         Ok(cfg)
@@ -157,6 +161,9 @@ impl GreyBoxConfig {
         if self.coupling {
             v.push(EffectName::Coupling);
         }
+        if self.viscous {
+            v.push(EffectName::Viscous);
+        }
         v
     }
 
@@ -172,6 +179,7 @@ impl GreyBoxConfig {
             EffectName::Creep => c.creep = true,
             EffectName::Dynamics => c.dynamics = true,
             EffectName::Coupling => c.coupling = true,
+            EffectName::Viscous => c.viscous = true,
         }
         c
     }

@@ -147,6 +147,7 @@ impl GreyBoxConfig {
             operator: self.hysteresis,
             creep_taus: creep_taus.to_vec(),
             dynamics: self.dynamics,
+            viscous: self.viscous,
         })
     }
 

@@ -21,6 +21,7 @@ use crate::effect::dynamics::{Dynamics, DynamicsSpec};
 use crate::effect::hysteresis::{HysteresisSpec, LinearSpec};
 use crate::effect::play::play_operator;
 use crate::effect::prandtl_ishlinskii::PrandtlIshlinskiiSpec;
+use crate::effect::viscous::ViscousSpec;
 use crate::effect::Operator;
 use crate::plant::{OutputSpec, PathSpec};
 use nalgebra::{DMatrix, DVector};
@@ -156,6 +157,8 @@ pub(crate) struct OutputProblem<'a> {
     paths: Vec<FitPath>,
     taus: Vec<f64>,
     dynamics: bool,
+    /// Per path, the rate of its input (empty without `viscous`).
+    rates: Vec<Vec<f64>>,
     creep_at: usize,
     n_theta: usize,
     f_bounds: (f64, f64),
@@ -178,6 +181,8 @@ pub(crate) struct OutputStructure {
     pub operator: Option<HysteresisOperator>,
     pub creep_taus: Vec<f64>,
     pub dynamics: bool,
+    /// A rate column c du/dt per path (viscous damping).
+    pub viscous: bool,
 }
 
 /// Linear least squares of y on the columns (free coefficients), by the normal equations.
@@ -309,7 +314,17 @@ impl<'a> OutputProblem<'a> {
             paths.push(FitPath { input: j, kind });
         }
         let fs = 1.0 / ts;
+        let rates = if structure.viscous {
+            structure
+                .paths
+                .iter()
+                .map(|&j| crate::effect::viscous::rate(u[j], ts))
+                .collect()
+        } else {
+            Vec::new()
+        };
         OutputProblem {
+            rates,
             name: name.to_string(),
             y,
             u,
@@ -362,7 +377,7 @@ impl<'a> OutputProblem<'a> {
     fn basis(&self, th: &[f64]) -> (Vec<Cow<'_, [f64]>>, Vec<bool>) {
         let mut cols: Vec<Cow<[f64]>> = Vec::new();
         let mut cons = Vec::new();
-        for p in &self.paths {
+        for (pi, p) in self.paths.iter().enumerate() {
             let u = self.u[p.input];
             cols.push(Cow::Borrowed(u));
             cons.push(false);
@@ -390,6 +405,10 @@ impl<'a> OutputProblem<'a> {
                     cols.push(Cow::Owned(bouc_wen_column(u, b, g)));
                     cons.push(true);
                 }
+            }
+            if let Some(r) = self.rates.get(pi) {
+                cols.push(Cow::Borrowed(r.as_slice()));
+                cons.push(false);
             }
         }
         cols.push(Cow::Owned(vec![1.0; self.y.len()]));
@@ -474,21 +493,23 @@ impl<'a> OutputProblem<'a> {
         let mut w = vec![0.0; n];
         let mut k = 0;
         let mut bw_cols = Vec::new();
+        let extra = usize::from(!self.rates.is_empty());
         for path in &self.paths {
-            let ncols = match &path.kind {
-                PathKind::Linear => 1,
-                PathKind::Pi { plays, bw, .. } => match bw {
-                    None => 1 + plays.len(),
-                    Some((at, range)) => {
-                        bw_cols.push((k + 1 + plays.len(), *at, *range, path.input));
-                        2 + plays.len()
+            let ncols = extra
+                + match &path.kind {
+                    PathKind::Linear => 1,
+                    PathKind::Pi { plays, bw, .. } => match bw {
+                        None => 1 + plays.len(),
+                        Some((at, range)) => {
+                            bw_cols.push((k + 1 + plays.len(), *at, *range, path.input));
+                            2 + plays.len()
+                        }
+                    },
+                    PathKind::BoucWen { at, range } => {
+                        bw_cols.push((k + 1, *at, *range, path.input));
+                        2
                     }
-                },
-                PathKind::BoucWen { at, range } => {
-                    bw_cols.push((k + 1, *at, *range, path.input));
-                    2
-                }
-            };
+                };
             for (col, &coef) in phi[k..k + ncols].iter().zip(&ev.coef[k..k + ncols]) {
                 if coef != 0.0 {
                     for (wv, v) in w.iter_mut().zip(col.iter()) {
@@ -729,7 +750,7 @@ impl<'a> OutputProblem<'a> {
     pub fn output_spec(&self, th: &[f64], coef: &[f64]) -> OutputSpec {
         let mut k = 0;
         let mut paths = Vec::new();
-        for p in &self.paths {
+        for (pi, p) in self.paths.iter().enumerate() {
             let input = self.input_names[p.input].clone();
             let hysteresis = match &p.kind {
                 PathKind::Linear => {
@@ -766,6 +787,7 @@ impl<'a> OutputProblem<'a> {
                                     n: 1.0,
                                     initial_h: 0.0,
                                 }),
+                                viscous: None,
                                 dynamics: None,
                             });
                         }
@@ -790,9 +812,16 @@ impl<'a> OutputProblem<'a> {
                     }
                 }
             };
+            let viscous = (pi < self.rates.len()).then(|| {
+                k += 1;
+                ViscousSpec {
+                    coefficient: coef[k - 1],
+                }
+            });
             paths.push(PathSpec {
                 input,
                 hysteresis,
+                viscous,
                 dynamics: None,
             });
         }

@@ -91,7 +91,7 @@ impl FittedGreyBox {
     /// `model.config().with_effect(EffectName::Creep).fit(&rec)` refits with one more effect.
     pub fn config(&self) -> GreyBoxConfig {
         let has = |e: EffectName| self.effects.contains(&e);
-        GreyBoxConfig::new(
+        let mut c = GreyBoxConfig::new(
             if has(EffectName::Hysteresis) {
                 Some(
                     self.hysteresis_operator
@@ -103,7 +103,9 @@ impl FittedGreyBox {
             has(EffectName::Creep),
             has(EffectName::Dynamics),
             has(EffectName::Coupling),
-        )
+        );
+        c.viscous = has(EffectName::Viscous);
+        c
     }
 
     /// Input names, in model order.

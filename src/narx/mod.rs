@@ -21,6 +21,7 @@ pub mod config;
 mod error;
 pub mod mlp;
 pub mod model;
+pub mod multi;
 pub mod regressors;
 pub mod synthetic;
 pub mod train;

@@ -1,4 +1,5 @@
-//! Simulation of chain plants: paths -> sum -> creep -> dynamics, per output.
+//! Simulation of chain plants: paths (hysteresis + viscous, path dynamics) -> sum -> creep ->
+//! dynamics, per output.
 
 use super::{OdePlant, OutputChain, Plant, PlantError, PlantKind};
 use crate::effect::{EffectError, Operator};
@@ -30,7 +31,18 @@ impl OutputChain {
                 .map(|d| d.operator(ts))
                 .transpose()
                 .map_err(|e| effect_err(plant, format!("outputs[{o}].paths[{k}].dynamics"), e))?;
-            paths.push((inputs[path.input], path.hysteresis.operator(), dynamics));
+            let viscous = path
+                .viscous
+                .as_ref()
+                .map(|v| v.operator(ts))
+                .transpose()
+                .map_err(|e| effect_err(plant, format!("outputs[{o}].paths[{k}].viscous"), e))?;
+            paths.push((
+                inputs[path.input],
+                path.hysteresis.operator(),
+                viscous,
+                dynamics,
+            ));
         }
         let mut creep = self.creep.as_ref().map(|c| c.operator(ts));
         let mut dynamics = self
@@ -42,8 +54,11 @@ impl OutputChain {
         let mut out = Vec::with_capacity(n);
         for k in 0..n {
             let mut w = 0.0;
-            for (u, h, d) in paths.iter_mut() {
-                let v = h.step(u[k]);
+            for (u, h, c, d) in paths.iter_mut() {
+                let mut v = h.step(u[k]);
+                if let Some(c) = c.as_mut() {
+                    v += c.step(u[k]);
+                }
                 w += match d {
                     Some(d) => d.step(v),
                     None => v,

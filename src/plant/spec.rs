@@ -4,6 +4,7 @@ use super::PlantError;
 use crate::effect::creep::{Creep, CreepSpec};
 use crate::effect::dynamics::{Dynamics, DynamicsSpec};
 use crate::effect::hysteresis::{Hysteresis, HysteresisSpec};
+use crate::effect::viscous::{Viscous, ViscousSpec};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -25,6 +26,9 @@ pub struct PathSpec {
     /// Name of the input (one of the plant's `inputs`).
     pub input: String,
     pub hysteresis: HysteresisSpec,
+    /// A term c du/dt added to the path (viscous damping), before the path's dynamics.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub viscous: Option<ViscousSpec>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dynamics: Option<DynamicsSpec>,
 }
@@ -91,6 +95,7 @@ pub enum OdePlant {
 pub struct PathParams {
     pub input: usize,
     pub hysteresis: Hysteresis,
+    pub viscous: Option<Viscous>,
     pub dynamics: Option<Dynamics>,
 }
 
@@ -246,9 +251,15 @@ impl PlantSpec {
                             .map(|d| d.check())
                             .transpose()
                             .map_err(|e| effect(format!("{pat}.dynamics"), e))?;
+                        let viscous = path
+                            .viscous
+                            .map(|v| v.check())
+                            .transpose()
+                            .map_err(|e| effect(format!("{pat}.viscous"), e))?;
                         paths.push(PathParams {
                             input,
                             hysteresis,
+                            viscous,
                             dynamics,
                         });
                     }

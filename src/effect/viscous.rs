@@ -1,0 +1,154 @@
+//! # Viscous damping (a term in the input's rate)
+//!
+//! A force (or output) proportional to the rate of the input: y_v = c du/dt, e.g. the dashpot
+//! c0 dx/dt of an MR damper driven in displacement (Spencer's phenomenological model:
+//! F = c0 dx/dt + k0 x + alpha z, with z a Bouc-Wen state driven by dx/dt). Sampled as the
+//! backward difference y_v(k) = c (u(k) - u(k-1)) / Ts, y_v(0) = 0 (the input held before the
+//! record starts); exact for an input linear between samples, with half a sample of delay.
+//!
+//! Hysteresis and creep depend on the input's path, not on its rate: a model made of them
+//! cannot produce a force that grows with the rate at the same displacement, and its residual
+//! correlates with du/dt (and with low-pass versions of it: a filtered rate).
+//!
+//! ## References
+//! - B. F. Spencer Jr., S. J. Dyke, M. K. Sain, J. D. Carlson, "Phenomenological model for
+//!   magnetorheological dampers", J. Eng. Mech. 123(3):230-238, 1997.
+
+use super::{finite, positive, EffectError, Operator};
+use serde::{Deserialize, Serialize};
+
+/// Viscous parameters as written in a plant file.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ViscousSpec {
+    /// c: output units per (input unit / s), e.g. N s/mm. Any sign (a rate term of a fitted
+    /// model may be negative).
+    pub coefficient: f64,
+}
+
+/// Valid viscous parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Viscous {
+    pub coefficient: f64,
+}
+
+impl ViscousSpec {
+    /// Check the parameters (the coefficient must be finite).
+    pub fn check(&self) -> Result<Viscous, EffectError> {
+        Ok(Viscous {
+            coefficient: finite("coefficient", self.coefficient)?,
+        })
+    }
+}
+
+impl Viscous {
+    /// The sampled operator for sampling period `ts` (s).
+    pub fn operator(&self, ts: f64) -> Result<ViscousOp, EffectError> {
+        positive("ts", ts)?;
+        Ok(ViscousOp {
+            gain: self.coefficient / ts,
+            last: None,
+        })
+    }
+}
+
+/// The sampled viscous term: c (u(k) - u(k-1)) / Ts, 0 at the first sample.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViscousOp {
+    gain: f64,
+    last: Option<f64>,
+}
+
+impl Operator for ViscousOp {
+    fn reset(&mut self) {
+        self.last = None;
+    }
+
+    fn step(&mut self, x: f64) -> f64 {
+        let y = match self.last {
+            Some(p) => self.gain * (x - p),
+            None => 0.0,
+        };
+        self.last = Some(x);
+        y
+    }
+}
+
+/// The rate of a signal, (u(k) - u(k-1)) / Ts with 0 at the first sample.
+pub fn rate(u: &[f64], ts: f64) -> Vec<f64> {
+    let mut out = Vec::with_capacity(u.len());
+    for k in 0..u.len() {
+        out.push(if k == 0 { 0.0 } else { (u[k] - u[k - 1]) / ts });
+    }
+    out
+}
+
+/// First-order low-pass (exact ZOH, unit gain, state 0 at the start) of a signal.
+fn low_pass(x: &[f64], tau: f64, ts: f64) -> Vec<f64> {
+    let a = (-ts / tau).exp();
+    let mut s = 0.0;
+    x.iter()
+        .map(|&v| {
+            s = a * s + (1.0 - a) * v;
+            s
+        })
+        .collect()
+}
+
+/// Time constants (in samples) of the bank's low-passed rates.
+pub const BANK_TAUS: [f64; 2] = [5.0, 25.0];
+
+/// Basis bank: the rate of the direct input and low-passed versions of it ([`BANK_TAUS`]
+/// samples): what a dashpot adds to a model, alone or behind a compliance (a Maxwell element,
+/// spring k in series with dashpot c: force = c du/dt low-passed with tau = c / k).
+pub fn basis(ctx: &super::basis::BasisContext) -> super::basis::BasisBank {
+    let mut bank = super::basis::BasisBank::new(super::EffectName::Viscous);
+    let u = ctx.inputs[ctx.direct];
+    let r = rate(u, ctx.ts);
+    for m in BANK_TAUS {
+        let tau = m * ctx.ts;
+        bank.push(
+            format!("rate(u, low-pass tau={tau:.4} s)"),
+            low_pass(&r, tau, ctx.ts),
+        );
+    }
+    bank.push("rate(u)".into(), r);
+    bank
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn operator_is_the_scaled_backward_difference() {
+        let v = ViscousSpec { coefficient: 2.0 }.check().unwrap();
+        let mut op = v.operator(0.5).unwrap();
+        let y = op.apply(&[1.0, 2.0, 4.0, 3.0]);
+        assert_eq!(y, vec![0.0, 4.0, 8.0, -4.0]);
+        op.reset();
+        assert_eq!(op.step(10.0), 0.0);
+        // a ramp of slope 3 gives c * 3 after the first sample
+        let u: Vec<f64> = (0..10).map(|k| 3.0 * k as f64 * 0.01).collect();
+        let y = v.operator(0.01).unwrap().apply(&u);
+        assert!(y[1..].iter().all(|v| (v - 6.0).abs() < 1e-9), "{y:?}");
+    }
+
+    #[test]
+    fn bad_parameters_name_the_field() {
+        let e = ViscousSpec {
+            coefficient: f64::NAN,
+        }
+        .check()
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("coefficient"), "{e}");
+        let e = ViscousSpec { coefficient: 1.0 }
+            .check()
+            .unwrap()
+            .operator(0.0)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("ts"), "{e}");
+    }
+}

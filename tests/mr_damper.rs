@@ -1,0 +1,275 @@
+//! `benchmark mr-damper`: the protocol on a short piece of the data (tests/data/mr-damper-mini),
+//! bad input (missing file, other columns, mixed sampling periods), NARX training on several
+//! records, and the viscous effect: named by the diagnosis and recovered by the grey-box fit on
+//! a simulated record.
+
+use hystbench::benchmark::mr_damper::{self, MrDamperError, Structure};
+use hystbench::data::IoRecord;
+use hystbench::diagnose::{diagnose, DiagnoseOptions};
+use hystbench::effect::hysteresis::HysteresisSpec;
+use hystbench::effect::EffectName;
+use hystbench::graybox::GreyBoxConfig;
+use hystbench::narx::{Lags, Mode, NarxConfig};
+use hystbench::plant::{Plant, PlantSpec};
+use hystbench::scenario::ScenarioSpec;
+use hystbench::simulator::simulate_scenario;
+use std::path::{Path, PathBuf};
+
+fn mini() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/mr-damper-mini")
+}
+
+/// A copy of the mini folder in a temporary folder, to break.
+fn copy_mini() -> tempfile::TempDir {
+    let d = tempfile::tempdir().unwrap();
+    for e in std::fs::read_dir(mini()).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), d.path().join(e.file_name())).unwrap();
+    }
+    d
+}
+
+#[test]
+fn protocol_on_a_piece_of_the_data() {
+    let data = mr_damper::load(&mini()).unwrap();
+    assert_eq!(data.train.len(), 10);
+    assert!(data.train.iter().all(|r| r.ts == 0.001));
+    assert_eq!(data.test.forces.len(), 5);
+    assert_eq!(data.test.x.len(), 1500);
+    // currents read from the files, groups from the names
+    let cur: Vec<f64> = data.train.iter().map(|r| r.current).collect();
+    assert_eq!(cur[..5], [0.0, 0.25, 0.5, 0.75, 1.0]);
+    assert_eq!(cur[5..], cur[..5]);
+    assert_eq!(data.train[0].group, "sine_A10mm_f1Hz");
+    let (variants, headline) = mr_damper::run_greybox(&data).unwrap();
+    assert_eq!(variants.len(), 4);
+    assert!(variants[headline].scheduled);
+    for v in &variants {
+        assert_eq!(v.scores.len(), 5);
+        for (s, p) in v.scores.iter().zip(&v.predictions) {
+            assert_eq!(p.len(), 1500);
+            // the score is the one of the prediction against the measured column
+            let k = mr_damper::TEST_CURRENTS
+                .iter()
+                .position(|c| *c == s.current)
+                .unwrap();
+            let f = &data.test.forces[k].1;
+            let rms = (p.iter().zip(f).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / f.len() as f64)
+                .sqrt();
+            assert!((s.rms_n.unwrap() - rms).abs() < 1e-9 * rms.max(1.0));
+        }
+    }
+    // the scheduled Bouc-Wen fit explains the training records far better than their spread
+    let bw = &variants[0];
+    assert_eq!((bw.structure, bw.scheduled), (Structure::BoucWen, true));
+    let spread = hystbench::metrics::std_dev(&data.train[9].f);
+    assert!(bw.fit.as_ref().unwrap().train_rms_n < 0.3 * spread);
+    // per-current models interpolate between the training currents
+    let pc = variants[1].per_current.as_ref().unwrap();
+    let (a, b, m) = (pc.at(0.25), pc.at(0.5), pc.at(0.375));
+    assert!((m.c0 - 0.5 * (a.c0 + b.c0)).abs() < 1e-9 * a.c0.abs().max(1.0));
+}
+
+#[test]
+fn missing_file_is_named() {
+    let d = copy_mini();
+    std::fs::remove_file(d.path().join("sine_A05mm_f3Hz_I0.75A.csv")).unwrap();
+    let e = mr_damper::load(d.path()).unwrap_err();
+    assert!(matches!(e, MrDamperError::MissingFile { .. }), "{e}");
+    assert!(e.to_string().contains("sine_A05mm_f3Hz_I0.75A.csv"), "{e}");
+    let e = mr_damper::load(Path::new("/no/such/folder")).unwrap_err();
+    assert!(e.to_string().contains("--data-dir"), "{e}");
+}
+
+#[test]
+fn other_columns_are_refused() {
+    let d = copy_mini();
+    let p = d.path().join("earthquake_validation.csv");
+    let text = std::fs::read_to_string(&p)
+        .unwrap()
+        .replacen("F_I0.4A_N", "F_I0.5A_N", 1);
+    std::fs::write(&p, text).unwrap();
+    let e = mr_damper::load(d.path()).unwrap_err().to_string();
+    assert!(
+        e.contains("earthquake_validation.csv")
+            && e.contains("F_I0.5A_N")
+            && e.contains("F_I0.4A_N"),
+        "{e}"
+    );
+    let p = d.path().join("sine_A10mm_f1Hz_I0.50A.csv");
+    let text = std::fs::read_to_string(&p)
+        .unwrap()
+        .replacen("x_mm", "x_m", 1);
+    std::fs::write(&p, text).unwrap();
+    let e = mr_damper::read_sine(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("x_m,") && e.contains("t_s,x_mm,v_mm_s,F_N,I_A"),
+        "{e}"
+    );
+}
+
+#[test]
+fn mixed_sampling_periods_are_refused() {
+    let m = mini();
+    let five = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/mr-damper-5ms-piece.csv");
+    let train = vec![m.join("sine_A10mm_f1Hz_I0.50A.csv"), five];
+    let e = mr_damper::load_files(&train, &m.join("earthquake_validation.csv")).unwrap_err();
+    let s = e.to_string();
+    assert!(matches!(e, MrDamperError::SamplingPeriods { .. }), "{s}");
+    assert!(
+        s.contains("mr-damper-5ms-piece.csv")
+            && s.contains("0.005")
+            && s.contains("sine_A10mm_f1Hz_I0.50A.csv")
+            && s.contains("0.001"),
+        "{s}"
+    );
+}
+
+/// Two records of a first-order system at two operating points (a constant second input):
+/// `fit_records` learns both, and a record of another length and period is refused.
+#[test]
+fn narx_trains_on_several_records() {
+    let make = |level: f64, n: usize, seed: u64| -> IoRecord {
+        let mut u = Vec::with_capacity(n);
+        let mut s = seed;
+        let mut v = 0.0;
+        for k in 0..n {
+            if k % 25 == 0 {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                v = ((s >> 33) as f64 / (1u64 << 31) as f64) * 2.0 - 1.0;
+            }
+            u.push(v);
+        }
+        let mut y = vec![0.0; n];
+        for k in 1..n {
+            y[k] = 0.9 * y[k - 1] + 0.1 * (1.0 + level) * u[k - 1];
+        }
+        IoRecord {
+            path: PathBuf::from(format!("rec{level}")),
+            ts: 0.01,
+            t0: 0.0,
+            time_name: "t".into(),
+            inputs: vec![
+                hystbench::data::Signal {
+                    name: "u".into(),
+                    values: u,
+                },
+                hystbench::data::Signal {
+                    name: "I".into(),
+                    values: vec![level; n],
+                },
+            ],
+            outputs: vec![hystbench::data::Signal {
+                name: "y".into(),
+                values: y,
+            }],
+        }
+    };
+    let mut c = NarxConfig::new(vec!["u".into(), "I".into()], vec!["y".into()]);
+    c.lags = Lags {
+        output: 2,
+        input: 2,
+        delay: 1,
+    };
+    c.neurons = 6;
+    c.robust.restarts = Some(1);
+    c.robust.sim_steps = 60;
+    let recs = vec![make(0.0, 1500, 1), make(1.0, 1500, 2)];
+    let m = c.fit_records(&recs).unwrap();
+    for (k, level) in [0.0, 1.0].into_iter().enumerate() {
+        let test = make(level, 1000, 7 + k as u64);
+        let p = m.predict(&test, Mode::FreeRun).unwrap();
+        let s = p[0].scores(&test.outputs[0].values).unwrap();
+        assert!(s.r2.unwrap() > 0.98, "level {level}: {s:?}");
+    }
+    let mut other = make(0.5, 1500, 3);
+    other.ts = 0.02;
+    let e = c
+        .fit_records(&[recs[0].clone(), other])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("sampling period"), "{e}");
+}
+
+/// A simulated damper-like record: Bouc-Wen plus a viscous term on a two-frequency motion.
+fn viscous_plant(coefficient: Option<f64>) -> Plant {
+    let visc = coefficient
+        .map(|c| format!(r#","viscous":{{"coefficient":{c}}}"#))
+        .unwrap_or_default();
+    let json = format!(
+        r#"{{"name":"damper","inputs":["u"],"outputs":[{{"name":"y","paths":[{{"input":"u","hysteresis":{{"bouc_wen":{{"d":0.8,"A":0.3,"B":0.02,"Gamma":0.01}}}}{visc}}}]}}]}}"#
+    );
+    PlantSpec::parse(Path::new("damper.json"), &json)
+        .unwrap()
+        .check(Path::new("damper.json"))
+        .unwrap()
+}
+
+const SINES: &str = r#"{"name":"two sines","sampling_period_s":0.001,"samples":12000,"seed":4,
+ "inputs":[{"sum":[{"sine":{"amplitude":25,"frequency_hz":0.7}},{"sine":{"amplitude":10,"frequency_hz":3.1,"phase_rad":1}}]}]}"#;
+
+fn viscous_record(noise: f64) -> IoRecord {
+    let mut s = ScenarioSpec::parse(Path::new("s.json"), SINES).unwrap();
+    s.noise_std = hystbench::scenario::NoiseLevel::All(noise);
+    let sc = s.check(Path::new("s.json")).unwrap();
+    simulate_scenario(&viscous_plant(Some(0.02)), &sc, None)
+        .unwrap()
+        .record
+}
+
+#[test]
+fn missing_viscous_is_named() {
+    for noise in [0.01, 0.1] {
+        let rec = viscous_record(noise);
+        let u: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
+        let without = viscous_plant(None).simulate(&u, rec.ts).unwrap();
+        let d = diagnose(
+            &rec,
+            &without,
+            &[EffectName::Hysteresis],
+            &DiagnoseOptions::default(),
+        );
+        assert_eq!(
+            d.missing,
+            Some(EffectName::Viscous),
+            "noise {noise}: {:?}",
+            d.ranking
+        );
+        let with = viscous_plant(Some(0.02)).simulate(&u, rec.ts).unwrap();
+        let d = diagnose(
+            &rec,
+            &with,
+            &[EffectName::Hysteresis, EffectName::Viscous],
+            &DiagnoseOptions::default(),
+        );
+        assert_eq!(d.missing, None, "noise {noise}: {:?}", d.ranking);
+    }
+}
+
+#[test]
+fn viscous_coefficient_is_recovered() {
+    let rec = viscous_record(0.0);
+    let m = GreyBoxConfig::from_effect_list("bouc-wen,viscous")
+        .unwrap()
+        .fit(&rec)
+        .unwrap();
+    let r2 = m.fit.r2.unwrap();
+    assert!(r2 > 0.99999, "r2 {r2}");
+    let path = &m.plant.spec.outputs[0].paths[0];
+    let c = path.viscous.unwrap().coefficient;
+    assert!((c - 0.02).abs() < 2e-4, "coefficient {c}");
+    assert!(matches!(path.hysteresis, HysteresisSpec::BoucWen(_)));
+    // without the effect the fit is clearly worse
+    let m0 = GreyBoxConfig::from_effect_list("bouc-wen")
+        .unwrap()
+        .fit(&rec)
+        .unwrap();
+    assert!(
+        m0.fit.rmse > 20.0 * m.fit.rmse,
+        "{} vs {}",
+        m0.fit.rmse,
+        m.fit.rmse
+    );
+}
