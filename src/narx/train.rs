@@ -22,6 +22,7 @@
 //! - T. Tieleman, G. Hinton, "RMSProp", COURSERA Neural Networks lecture 6.5, 2012.
 
 use super::config::{OptimizerKind, RobustSettings};
+use super::kernel::{self, BatchWorkspace};
 use super::mlp::{uniform01, Mlp};
 use super::regressors::{Regressor, Series};
 use nalgebra::{DMatrix, DVector};
@@ -113,6 +114,16 @@ impl Design {
 
     /// Mean squared one-step error of a network.
     pub fn mse(&self, mlp: &Mlp) -> f64 {
+        if kernel::applies(mlp) {
+            let sse = kernel::sum_squared_errors(
+                mlp,
+                &self.x,
+                &self.t,
+                MSE_BLOCK,
+                &mut BatchWorkspace::new(),
+            );
+            return sse / self.rows().max(1) as f64;
+        }
         let mut acts = vec![0.0; mlp.acts_len()];
         let mut s = 0.0;
         for i in 0..self.rows() {
@@ -123,6 +134,12 @@ impl Design {
         s / self.rows().max(1) as f64
     }
 }
+
+/// Rows per block of the batched one-step error.
+const MSE_BLOCK: usize = 256;
+
+/// Smallest mini-batch trained with the batched kernel; smaller ones go sample by sample.
+const MIN_KERNEL_BATCH: usize = 4;
 
 /// What the one-step phase did.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -156,6 +173,8 @@ pub fn train_one_step(
     let mut grad = vec![0.0; np];
     let mut acts = vec![0.0; mlp.acts_len()];
     let mut scratch = vec![0.0; 2 * mlp.max_width()];
+    let batched = kernel::applies(mlp) && batch >= MIN_KERNEL_BATCH;
+    let mut bw = BatchWorkspace::new();
     let mut best = val.map(|v| (v.mse(mlp), 0usize, mlp.params.clone()));
     let mut epochs_run = 0;
     for epoch in 1..=epochs {
@@ -165,8 +184,13 @@ pub fn train_one_step(
             order.swap(i, j.min(i));
         }
         for chunk in order.chunks(batch) {
-            grad.iter_mut().for_each(|g| *g = 0.0);
             let scale = 2.0 / chunk.len() as f64;
+            if batched {
+                kernel::batch_gradient(mlp, &train.x, &train.t, chunk, scale, &mut grad, &mut bw);
+                opt.step(&mut mlp.params, &grad);
+                continue;
+            }
+            grad.iter_mut().for_each(|g| *g = 0.0);
             if mlp.sizes.len() == 3 {
                 for &i in chunk {
                     one_hidden_step(mlp, train.row(i), train.t[i], scale, &mut grad, &mut acts);
