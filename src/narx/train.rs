@@ -244,15 +244,20 @@ fn one_hidden_step(mlp: &Mlp, x: &[f64], t: f64, scale: f64, grad: &mut [f64], a
     let b2 = rest[0];
     let ws = &rest[1..];
     let a = &mut a[..h];
-    let mut out = b2;
-    for ((ao, row), (&bo, &wo)) in a.iter_mut().zip(w1.chunks_exact(p)).zip(b1.iter().zip(w2)) {
+    // pre-activations, then tanh over all neurons in one loop (vectorised), then the output
+    for ((ao, row), &bo) in a.iter_mut().zip(w1.chunks_exact(p)).zip(b1) {
         let mut z = bo;
         for (wi, xi) in row.iter().zip(x) {
             z += wi * xi;
         }
-        let v = super::mlp::tanh(z);
-        *ao = v;
-        out += wo * v;
+        *ao = z;
+    }
+    for v in a.iter_mut() {
+        *v = super::mlp::tanh(*v);
+    }
+    let mut out = b2;
+    for (&ao, &wo) in a.iter().zip(w2) {
+        out += wo * ao;
     }
     if mlp.bypass {
         for (wi, xi) in ws.iter().zip(x) {
