@@ -6,6 +6,7 @@
 //! - [`regressors`]: lags, delay, standardisation; extra exogenous signals (features from the
 //!   effect library) enter exactly like inputs;
 //! - [`mlp`]: a hand-written network with an optional linear bypass;
+//! - [`kernel`]: batched forward/backward of one-hidden-layer networks (the training hot loop);
 //! - [`train`]: RMSProp / Adam one-step training, least-squares output-layer start,
 //!   simulation-error training over windows, free run with divergence detection;
 //! - [`config`]: the unfitted [`NarxConfig`] (protocol `default` or `study`);
@@ -19,6 +20,7 @@
 
 pub mod config;
 mod error;
+pub mod kernel;
 pub mod mlp;
 pub mod model;
 pub mod multi;

@@ -22,6 +22,7 @@
 //! - T. Tieleman, G. Hinton, "RMSProp", COURSERA Neural Networks lecture 6.5, 2012.
 
 use super::config::{OptimizerKind, RobustSettings};
+use super::kernel::{self, BatchWorkspace};
 use super::mlp::{uniform01, Mlp};
 use super::regressors::{Regressor, Series};
 use nalgebra::{DMatrix, DVector};
@@ -113,6 +114,16 @@ impl Design {
 
     /// Mean squared one-step error of a network.
     pub fn mse(&self, mlp: &Mlp) -> f64 {
+        if kernel::applies(mlp) {
+            let sse = kernel::sum_squared_errors(
+                mlp,
+                &self.x,
+                &self.t,
+                MSE_BLOCK,
+                &mut BatchWorkspace::new(),
+            );
+            return sse / self.rows().max(1) as f64;
+        }
         let mut acts = vec![0.0; mlp.acts_len()];
         let mut s = 0.0;
         for i in 0..self.rows() {
@@ -123,6 +134,12 @@ impl Design {
         s / self.rows().max(1) as f64
     }
 }
+
+/// Rows per block of the batched one-step error.
+const MSE_BLOCK: usize = 256;
+
+/// Smallest mini-batch trained with the batched kernel; smaller ones go sample by sample.
+const MIN_KERNEL_BATCH: usize = 4;
 
 /// What the one-step phase did.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -156,6 +173,8 @@ pub fn train_one_step(
     let mut grad = vec![0.0; np];
     let mut acts = vec![0.0; mlp.acts_len()];
     let mut scratch = vec![0.0; 2 * mlp.max_width()];
+    let batched = kernel::applies(mlp) && batch >= MIN_KERNEL_BATCH;
+    let mut bw = BatchWorkspace::new();
     let mut best = val.map(|v| (v.mse(mlp), 0usize, mlp.params.clone()));
     let mut epochs_run = 0;
     for epoch in 1..=epochs {
@@ -165,8 +184,13 @@ pub fn train_one_step(
             order.swap(i, j.min(i));
         }
         for chunk in order.chunks(batch) {
-            grad.iter_mut().for_each(|g| *g = 0.0);
             let scale = 2.0 / chunk.len() as f64;
+            if batched {
+                kernel::batch_gradient(mlp, &train.x, &train.t, chunk, scale, &mut grad, &mut bw);
+                opt.step(&mut mlp.params, &grad);
+                continue;
+            }
+            grad.iter_mut().for_each(|g| *g = 0.0);
             if mlp.sizes.len() == 3 {
                 for &i in chunk {
                     one_hidden_step(mlp, train.row(i), train.t[i], scale, &mut grad, &mut acts);
@@ -220,15 +244,20 @@ fn one_hidden_step(mlp: &Mlp, x: &[f64], t: f64, scale: f64, grad: &mut [f64], a
     let b2 = rest[0];
     let ws = &rest[1..];
     let a = &mut a[..h];
-    let mut out = b2;
-    for ((ao, row), (&bo, &wo)) in a.iter_mut().zip(w1.chunks_exact(p)).zip(b1.iter().zip(w2)) {
+    // pre-activations, then tanh over all neurons in one loop (vectorised), then the output
+    for ((ao, row), &bo) in a.iter_mut().zip(w1.chunks_exact(p)).zip(b1) {
         let mut z = bo;
         for (wi, xi) in row.iter().zip(x) {
             z += wi * xi;
         }
-        let v = super::mlp::tanh(z);
-        *ao = v;
-        out += wo * v;
+        *ao = z;
+    }
+    for v in a.iter_mut() {
+        *v = super::mlp::tanh(*v);
+    }
+    let mut out = b2;
+    for (&ao, &wo) in a.iter().zip(w2) {
+        out += wo * ao;
     }
     if mlp.bypass {
         for (wi, xi) in ws.iter().zip(x) {
@@ -359,6 +388,38 @@ pub fn free_run_fast(
     if mlp.sizes.len() != 3 {
         return free_run(mlp, reg, s, lo, hi);
     }
+    #[cfg(target_arch = "x86_64")]
+    if kernel::uses_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked just above).
+        return unsafe { free_run_one_hidden_avx2(mlp, reg, s, lo, hi) };
+    }
+    free_run_one_hidden(mlp, reg, s, lo, hi)
+}
+
+/// [`free_run_fast`] built for AVX2 (the same operations in the same order: same bits).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn free_run_one_hidden_avx2(
+    mlp: &Mlp,
+    reg: &Regressor,
+    s: &Series,
+    lo: f64,
+    hi: f64,
+) -> (Vec<f64>, Option<usize>) {
+    free_run_one_hidden(mlp, reg, s, lo, hi)
+}
+
+/// The body of [`free_run_fast`]: per sample, every neuron's input (exogenous regressors, then
+/// output lags, each added to all neurons at once), tanh over all neurons in whole vectors, and
+/// the output sum in neuron order.
+#[inline(always)]
+fn free_run_one_hidden(
+    mlp: &Mlp,
+    reg: &Regressor,
+    s: &Series,
+    lo: f64,
+    hi: f64,
+) -> (Vec<f64>, Option<usize>) {
     let n = s.len();
     let start = reg.lags.start().min(n);
     let (p, h) = (mlp.sizes[0], mlp.sizes[1]);
@@ -372,10 +433,20 @@ pub fn free_run_fast(
     } else {
         &[][..]
     };
-    // Split W1 by columns: output-lag part (h x ny) and exogenous part.
-    let w1y: Vec<f64> = (0..h)
-        .flat_map(|o| w1[o * p..o * p + ny].iter().copied())
-        .collect();
+    // W1 packed by groups of 4 neurons (padded with zeros): group c holds, for each regressor in
+    // the order of the sums (exogenous first, then output lags), its 4 weights.
+    const V: usize = 4;
+    let hp = h.div_ceil(V) * V;
+    let order: Vec<usize> = (ny..p).chain(0..ny).collect();
+    let mut w1c = vec![0.0; hp * p];
+    for o in 0..h {
+        let (c, l) = (o / V, o % V);
+        for (jj, &j) in order.iter().enumerate() {
+            w1c[(c * p + jj) * V + l] = w1[o * p + j];
+        }
+    }
+    let mut b1p = vec![0.0; hp];
+    b1p[..h].copy_from_slice(b1);
     let wsy: Vec<f64> = if mlp.bypass {
         ws[..ny].to_vec()
     } else {
@@ -385,32 +456,38 @@ pub fn free_run_fast(
     let mut y = Vec::with_capacity(n);
     y.extend_from_slice(&s.y[..start]);
     let mut x = vec![0.0; p];
-    let mut pre = vec![0.0; h];
+    let mut xo = vec![0.0; p];
+    let mut act = vec![0.0; hp];
     for k in start..n {
         reg.fill_inputs(&s.u, k, &mut x);
+        reg.fill_outputs(&y, k, &mut x);
+        xo[..p - ny].copy_from_slice(&x[ny..]);
+        xo[p - ny..].copy_from_slice(&x[..ny]);
         let mut out = b2;
-        for o in 0..h {
-            let row = &w1[o * p + ny..(o + 1) * p];
-            let mut a = b1[o];
-            for (wi, xi) in row.iter().zip(&x[ny..]) {
-                a += wi * xi;
-            }
-            pre[o] = a;
-        }
         if mlp.bypass {
             for (wi, xi) in ws[ny..].iter().zip(&x[ny..]) {
                 out += wi * xi;
             }
         }
-        reg.fill_outputs(&y, k, &mut x);
-        let xy = &x[..ny];
-        for o in 0..h {
-            let row = &w1y[o * ny..(o + 1) * ny];
-            let mut a = pre[o];
-            for (wi, xi) in row.iter().zip(xy) {
-                a += wi * xi;
+        // four neurons at a time: bias, exogenous regressors, output lags, tanh
+        for ((ac, bc), wc) in act
+            .chunks_exact_mut(V)
+            .zip(b1p.chunks_exact(V))
+            .zip(w1c.chunks_exact(p * V))
+        {
+            let mut a = [bc[0], bc[1], bc[2], bc[3]];
+            for (wj, &xj) in wc.chunks_exact(V).zip(&xo) {
+                for l in 0..V {
+                    a[l] += wj[l] * xj;
+                }
             }
-            out += w2[o] * super::mlp::tanh(a);
+            for l in 0..V {
+                ac[l] = super::mlp::tanh(a[l]);
+            }
+        }
+        let xy = &x[..ny];
+        for (wo, a) in w2.iter().zip(&act) {
+            out += wo * a;
         }
         for (wi, xi) in wsy.iter().zip(xy) {
             out += wi * xi;
@@ -743,6 +820,24 @@ mod tests {
             let want: f64 = (st..300).map(|k| (a[k] - s.y[k]).powi(2)).sum();
             assert!((sse - want).abs() < 1e-9 * (1.0 + want), "{sse} vs {want}");
         }
+    }
+
+    #[test]
+    fn free_run_is_the_same_in_the_simd_and_the_baseline_build() {
+        let lags = Lags {
+            output: 4,
+            input: 3,
+            delay: 1,
+        };
+        let s = series(400, 1);
+        let reg = Regressor::fit(lags, RegressorForm::Incremental, &s);
+        let mut m = Mlp::glorot(&[reg.width(), 10, 1], true, 8);
+        m.params.iter_mut().for_each(|p| *p *= 0.3);
+        let (a, da) = free_run_fast(&m, &reg, &s, -1e3, 1e3);
+        let (b, db) = free_run_one_hidden(&m, &reg, &s, -1e3, 1e3);
+        assert_eq!(da, db);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&a), bits(&b));
     }
 
     #[test]
