@@ -145,15 +145,8 @@ impl Record {
             .map(String::as_str)
     }
 
-    /// The sampling period from the time column, checked to be uniform (1 % of a period).
-    pub fn sampling_period(&self) -> Result<Option<f64>, DataError> {
-        let Some(name) = self.time_column() else {
-            return Ok(None);
-        };
-        let t = self.column(name)?;
-        if t.len() < 2 {
-            return Ok(None);
-        }
+    /// Every time stamp after the one before (the error names the first line that is not).
+    pub fn check_increasing(&self, name: &str, t: &[f64]) -> Result<(), DataError> {
         for k in 1..t.len() {
             if t[k] <= t[k - 1] {
                 return Err(DataError::TimeNotIncreasing {
@@ -165,6 +158,19 @@ impl Record {
                 });
             }
         }
+        Ok(())
+    }
+
+    /// The sampling period from the time column, checked to be uniform (1 % of a period).
+    pub fn sampling_period(&self) -> Result<Option<f64>, DataError> {
+        let Some(name) = self.time_column() else {
+            return Ok(None);
+        };
+        let t = self.column(name)?;
+        if t.len() < 2 {
+            return Ok(None);
+        }
+        self.check_increasing(name, t)?;
         let n = t.len();
         // median step is robust against a single gap
         let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();

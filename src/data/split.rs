@@ -48,17 +48,7 @@ pub fn split_at_gaps(rec: &Record, gap: f64, min_samples: usize) -> Result<Split
     let name = name.to_string();
     let ti = rec.names.iter().position(|n| *n == name).unwrap_or(0);
     let t = rec.column(&name)?;
-    for k in 1..t.len() {
-        if t[k] <= t[k - 1] {
-            return Err(DataError::TimeNotIncreasing {
-                path: rec.path.clone(),
-                line: k + 2,
-                column: name.clone(),
-                time: t[k],
-                previous: t[k - 1],
-            });
-        }
-    }
+    rec.check_increasing(&name, t)?;
     let steps = TimeSteps::with_gap(t, gap);
     let period = steps.median;
     let mut bounds = vec![0];
