@@ -116,10 +116,10 @@ fn hysteresis_features_improve_prandtl_ishlinskii_and_are_recomputed_on_another_
 #[test]
 fn default_protocol_on_the_2dof_record_with_250_training_samples() {
     // Short-record settings (whole record for simulation error and selection, 16 restarts,
-    // 3000 steps): never diverged over record seeds 1-4 x --seed 0-2; free-run test R^2
-    // between 0.963 and 0.997, 12 of 24 outputs >= 0.99. The 0.99 on both outputs is
-    // reached at some seeds only. Here record seed 1: --seed 1 measured 0.9950 / 0.9958,
-    // --seed 0 0.9969 / 0.9629.
+    // 3000 steps, an ensemble of 3-5 of them): never diverged over record seeds 1-4 x --seed
+    // 0-2; free-run test R^2 between 0.9835 and 0.9985, 17 of 24 outputs >= 0.99 (one network:
+    // 0.963-0.997, 12 of 24). The 0.99 on both outputs is reached at some seeds only.
+    // Here record seed 1: --seed 1 measured 0.9955 / 0.9964, --seed 0 0.9848 / 0.9886.
     let rec = seed_2dof(1);
     let mut cfg = config(&rec);
     cfg.seed = 1;
@@ -130,7 +130,7 @@ fn default_protocol_on_the_2dof_record_with_250_training_samples() {
     cfg.seed = 0;
     for (i, r2) in free_run_test_r2(&cfg, &rec).into_iter().enumerate() {
         let r2 = r2.expect("no divergence");
-        assert!(r2 >= 0.96, "output {i}: free-run test R^2 {r2}");
+        assert!(r2 >= 0.98, "output {i}: free-run test R^2 {r2}");
     }
 }
 
@@ -221,7 +221,9 @@ fn model_file_round_trip_and_refusals() {
 fn a_diverging_free_run_is_reported_with_its_sample_not_scored() {
     let rec = seed_2dof(4);
     let (train, test) = rec.split_halves();
-    let mut m = quick(config(&train)).fit(&train).unwrap();
+    let mut cfg = quick(config(&train));
+    cfg.robust.ensemble = Some(1); // one network (ensembles: see the test below)
+    let mut m = cfg.fit(&train).unwrap();
     // make output y1 unstable: a huge weight on y(k-1) in the bypass
     let net = &mut m.outputs[0].network;
     let bo = net.bypass_offset();
@@ -632,4 +634,92 @@ fn acceptance_2dof_over_seeds() {
         "below the thresholds:\n{}",
         failed.join("\n")
     );
+}
+
+#[test]
+fn short_records_get_an_ensemble_that_loads_predicts_the_mean_and_reports_divergence() {
+    let rec = seed_2dof(2);
+    let (train, test) = rec.split_halves();
+    let mut cfg = quick(config(&train));
+    cfg.robust.restarts = Some(4);
+    let fit = |threads, cfg: &NarxConfig| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| cfg.fit(&train).unwrap())
+    };
+    let m = fit(2, &cfg);
+    assert_eq!(model_bytes(&m), model_bytes(&fit(1, &cfg)));
+    for o in &m.outputs {
+        // sizes 3 or all (4 restarts: 5 is clamped to 4; fewer if a training free run diverged)
+        let k = 1 + o.ensemble.len();
+        assert!((2..=4).contains(&k), "{k} members");
+        assert_eq!(o.training.ensemble_restarts.len(), k);
+        assert_eq!(o.training.ensemble_restarts[0], o.training.chosen_restart);
+    }
+    // the file keeps every member
+    let back = FittedNarx::from_json(std::path::Path::new("m.json"), &m.to_json()).unwrap();
+    assert_eq!(model_bytes(&back), model_bytes(&m));
+    // the prediction is the mean of the members' free runs
+    let p = m.predict(&test, Mode::FreeRun).unwrap();
+    let mut runs = Vec::new();
+    for net in m.outputs[0].members() {
+        let mut single = m.clone();
+        single.outputs[0].network = net.clone();
+        single.outputs[0].ensemble.clear();
+        runs.push(
+            single.predict(&test, Mode::FreeRun).unwrap()[0]
+                .values
+                .clone(),
+        );
+    }
+    let k = runs.len() as f64;
+    for t in m.config.lags.start()..test.len() {
+        let mean = runs.iter().map(|r| r[t]).sum::<f64>() / k;
+        assert!((p[0].values[t] - mean).abs() < 1e-9 * (1.0 + mean.abs()));
+    }
+    assert!(p[0].diverged_members.is_empty());
+    // forced to one network: no ensemble
+    let mut one = cfg.clone();
+    one.robust.ensemble = Some(1);
+    assert!(fit(2, &one).outputs.iter().all(|o| o.ensemble.is_empty()));
+    // a diverging member is reported and left out of the mean
+    let mut bad = m.clone();
+    let net = &mut bad.outputs[0].ensemble[0];
+    let bo = net.bypass_offset();
+    net.params[bo] = 50.0;
+    let q = bad.predict(&test, Mode::FreeRun).unwrap();
+    assert_eq!(q[0].diverged_members, vec![1]);
+    assert_eq!(q[0].diverged_at, None);
+    let kept: Vec<&Vec<f64>> = (0..runs.len())
+        .filter(|&i| i != 1)
+        .map(|i| &runs[i])
+        .collect();
+    let t = test.len() - 1;
+    let mean = kept.iter().map(|r| r[t]).sum::<f64>() / kept.len() as f64;
+    assert!((q[0].values[t] - mean).abs() < 1e-9 * (1.0 + mean.abs()));
+    let e = bad.evaluate(&train, &test).unwrap();
+    assert_eq!(e[0].diverged_members_test, vec![1]);
+    // every member diverging: the output diverged, not scored
+    let o = &mut bad.outputs[0];
+    for net in o.ensemble.iter_mut().chain([&mut o.network]) {
+        let bo = net.bypass_offset();
+        net.params[bo] = 50.0;
+    }
+    let q = bad.predict(&test, Mode::FreeRun).unwrap();
+    assert!(q[0].diverged_at.is_some());
+    assert_eq!(q[0].scores(&test.outputs[0].values), None);
+    // a model file from before ensembles (one network, no `ensemble` fields) still loads
+    let mut v: serde_json::Value = serde_json::from_str(&m.to_json()).unwrap();
+    for o in v["model"]["outputs"].as_array_mut().unwrap() {
+        o.as_object_mut().unwrap().remove("ensemble");
+        o["training"]
+            .as_object_mut()
+            .unwrap()
+            .remove("ensemble_restarts");
+    }
+    let old = FittedNarx::from_json(std::path::Path::new("old.json"), &v.to_string()).unwrap();
+    assert!(old.outputs.iter().all(|o| o.ensemble.is_empty()));
+    assert!(old.predict(&test, Mode::FreeRun).is_ok());
 }

@@ -105,6 +105,10 @@ pub struct NetArgs {
     /// Fraction of the training record kept for validation (default protocol).
     #[arg(long)]
     pub validation_fraction: Option<f64>,
+    /// Networks kept per output (the best restarts; predictions are their mean). Default:
+    /// chosen from 3, 5 or all restarts on records under 1,000 samples, 1 on longer ones.
+    #[arg(long)]
+    pub ensemble: Option<usize>,
 }
 
 impl NetArgs {
@@ -155,6 +159,9 @@ impl NetArgs {
         if let Some(v) = self.sim_patience {
             c.robust.sim_patience = v;
         }
+        if let Some(v) = self.ensemble {
+            c.robust.ensemble = Some(v);
+        }
         c
     }
 }
@@ -193,6 +200,12 @@ pub fn evaluation_json(e: &OutputEvaluation) -> serde_json::Value {
     }
     if let Some(k) = e.diverged_at_train {
         m.insert("diverged_at_train".into(), k.into());
+    }
+    if !e.diverged_members_test.is_empty() {
+        m.insert(
+            "ensemble_members_diverged_test".into(),
+            e.diverged_members_test.clone().into(),
+        );
     }
     serde_json::Value::Object(m)
 }
@@ -311,6 +324,24 @@ fn run_with(
                 cell(e.r2_fr_test, e.diverged_at_test),
                 e.rmse_fr_test.map_or("-".into(), |v| format!("{v:.4e}")),
             );
+        }
+        for (e, o) in eval.iter().zip(&model.outputs) {
+            if !o.ensemble.is_empty() {
+                println!(
+                    "{}: ensemble of {} networks (restarts {:?}){}",
+                    o.name,
+                    1 + o.ensemble.len(),
+                    o.training.ensemble_restarts,
+                    if e.diverged_members_test.is_empty() {
+                        String::new()
+                    } else {
+                        format!(
+                            "; members {:?} diverged on the test record and were left out of the mean",
+                            e.diverged_members_test
+                        )
+                    }
+                );
+            }
         }
         if let Some(fs) = &model.feature_selection {
             let names: Vec<String> = fs.tried.iter().map(|e| e.to_string()).collect();

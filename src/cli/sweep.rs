@@ -138,6 +138,7 @@ fn config(a: &SweepArgs, s: &Setting, inputs: Vec<String>, outputs: Vec<String>)
         sim_patience: None,
         weight_decay: None,
         validation_fraction: None,
+        ensemble: None,
     };
     let mut c = net.config(inputs, outputs, s.lags, s.lr, s.batch);
     // the grid studies the plain network (and keeps the study grid's time): no feature selection

@@ -106,7 +106,19 @@ pub struct RobustSettings {
     /// up to 5x between restarts and seeds of the same model on the same plant).
     #[serde(default = "feature_gain")]
     pub feature_gain: f64,
+    /// Ensemble: the model keeps this many restarts (best training free runs first) per output
+    /// and predicts with the mean of their one-step predictions and of their free runs.
+    /// `None` (default): on records under [`SHORT_RECORD`] samples (with
+    /// `short_record_settings`) the size is chosen from {3, 5, all non-diverged restarts} by the
+    /// training free run of the mean (see [`ENSEMBLE_SIZES`]); on longer records one network.
+    /// `Some(1)`: one network (the best restart) everywhere.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ensemble: Option<usize>,
 }
+
+/// The ensemble sizes tried on short records (`usize::MAX`: every restart whose training free
+/// run did not diverge).
+pub const ENSEMBLE_SIZES: [usize; 3] = [3, 5, usize::MAX];
 
 fn feature_gain() -> f64 {
     0.1
@@ -136,6 +148,7 @@ impl Default for RobustSettings {
             short_record_settings: true,
             try_features: vec![EffectName::Hysteresis],
             feature_gain: feature_gain(),
+            ensemble: None,
         }
     }
 }
@@ -150,6 +163,16 @@ impl RobustSettings {
         } else {
             2
         })
+    }
+
+    /// The ensemble sizes to choose from on a training record of `n` samples: one size when
+    /// it is fixed (`ensemble`, or 1 on records of [`SHORT_RECORD`] samples and more).
+    pub fn ensemble_sizes(&self, n: usize) -> Vec<usize> {
+        match self.ensemble {
+            Some(k) => vec![k],
+            None if n < SHORT_RECORD && self.short_record_settings => ENSEMBLE_SIZES.to_vec(),
+            None => vec![1],
+        }
     }
 
     /// The settings used on a training record of `n` samples. A short record (under
@@ -277,6 +300,9 @@ impl NarxConfig {
         }
         if r.restarts == Some(0) {
             return bad("restarts", "0".into(), "must be at least 1");
+        }
+        if r.ensemble == Some(0) {
+            return bad("ensemble", "0".into(), "must be at least 1");
         }
         if r.window < 2 || r.samples_per_step == 0 || r.eval_every == 0 {
             return bad(

@@ -43,6 +43,9 @@ pub struct OutputTraining {
     pub validation_samples: usize,
     pub restarts: Vec<RestartRecord>,
     pub chosen_restart: usize,
+    /// The restarts kept as an ensemble (`chosen_restart` first); empty: one network.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ensemble_restarts: Vec<usize>,
 }
 
 /// One output's network and scaling.
@@ -56,7 +59,18 @@ pub struct OutputModel {
     /// Lags, form and difference scaling of the regressor.
     pub regressor: Regressor,
     pub network: Mlp,
+    /// Further ensemble members (the networks of `training.ensemble_restarts[1..]`); empty: the
+    /// model is `network` alone. Predictions are the mean over `network` and these.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ensemble: Vec<Mlp>,
     pub training: OutputTraining,
+}
+
+impl OutputModel {
+    /// Every network of this output: `network`, then the further ensemble members.
+    pub fn members(&self) -> impl Iterator<Item = &Mlp> {
+        std::iter::once(&self.network).chain(self.ensemble.iter())
+    }
 }
 
 /// A fitted NARX model: one MISO network per output.
@@ -108,8 +122,12 @@ pub struct OutputPrediction {
     /// Shorter than the record when the free run diverged.
     pub values: Vec<f64>,
     pub start: usize,
-    /// First sample where the free run left the plausible range.
+    /// First sample where the free run left the plausible range (for an ensemble: the first
+    /// sample where any member did).
     pub diverged_at: Option<usize>,
+    /// Ensemble members (0: `network`) whose free run diverged. They are left out of the mean
+    /// (listed here, and in the evaluation); when every member diverged, the output diverged.
+    pub diverged_members: Vec<usize>,
 }
 
 impl OutputPrediction {
@@ -299,6 +317,12 @@ impl NarxConfig {
                     lr: self.lr,
                 });
             }
+            let sizes = match self.protocol {
+                Protocol::Default => self.robust.ensemble_sizes(n),
+                Protocol::Study => vec![1],
+            };
+            let members = choose_ensemble(mine, chosen, &sizes, &prepared[o].1, &regressors[o]);
+            let ensemble: Vec<Mlp> = members.iter().skip(1).map(|&i| mine[i].0.clone()).collect();
             outputs.push(OutputModel {
                 name: sig.name.clone(),
                 scaling: prepared[o].0,
@@ -306,11 +330,17 @@ impl NarxConfig {
                 train_max: sig.values.iter().copied().fold(f64::NEG_INFINITY, f64::max),
                 regressor: regressors[o].clone(),
                 network: net,
+                ensemble,
                 training: OutputTraining {
                     train_samples: mine[chosen].2,
                     validation_samples: mine[chosen].3,
                     restarts: mine.iter().map(|r| r.1.clone()).collect(),
                     chosen_restart: chosen,
+                    ensemble_restarts: if members.len() > 1 {
+                        members
+                    } else {
+                        Vec::new()
+                    },
                 },
             });
         }
@@ -422,6 +452,70 @@ impl NarxConfig {
     }
 }
 
+/// The restarts kept for one output (`chosen` first). With several candidate sizes, the
+/// restarts are ranked by their free-run selection MSE (diverged ones left out) and the size
+/// whose mean free run fits the training series best is kept (ties: the smaller); all of this
+/// on the training record only.
+fn choose_ensemble(
+    mine: &[(Mlp, RestartRecord, usize, usize)],
+    chosen: usize,
+    sizes: &[usize],
+    s: &Series,
+    reg: &Regressor,
+) -> Vec<usize> {
+    let mut ranked: Vec<(usize, f64)> = mine
+        .iter()
+        .enumerate()
+        .filter_map(|(i, r)| {
+            let ok = r.0.params.iter().all(|p| p.is_finite());
+            r.1.selection_mse.filter(|_| ok).map(|m| (i, m))
+        })
+        .collect();
+    // stable sort: equal errors keep restart order
+    ranked.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let mut order: Vec<usize> = vec![chosen];
+    order.extend(ranked.iter().map(|r| r.0).filter(|&i| i != chosen));
+    let finite = ranked.len().max(1);
+    let mut ks: Vec<usize> = sizes.iter().map(|&k| k.min(finite).max(1)).collect();
+    ks.dedup();
+    if ks.len() == 1 {
+        return order[..ks[0].min(order.len())].to_vec();
+    }
+    let (lo, hi) = plausible_range(&s.y);
+    let start = reg.lags.start();
+    let runs: Vec<Vec<f64>> = order
+        .iter()
+        .take(*ks.iter().max().unwrap_or(&1))
+        .map(|&i| {
+            let (y, div) = free_run_fast(&mine[i].0, reg, s, lo, hi);
+            if div.is_some() {
+                Vec::new()
+            } else {
+                y
+            }
+        })
+        .collect();
+    let mut best: Option<(usize, f64)> = None;
+    for &k in &ks {
+        let members = &runs[..k.min(runs.len())];
+        if members.iter().any(|r| r.len() != s.len()) {
+            continue;
+        }
+        let mse = (start..s.len())
+            .map(|t| {
+                let m = members.iter().map(|r| r[t]).sum::<f64>() / members.len() as f64;
+                (m - s.y[t]).powi(2)
+            })
+            .sum::<f64>()
+            / (s.len() - start).max(1) as f64;
+        if best.is_none_or(|b| mse < b.1) {
+            best = Some((k, mse));
+        }
+    }
+    let k = best.map_or(1, |b| b.0);
+    order[..k.min(order.len())].to_vec()
+}
+
 /// The training range widened by [`DIVERGENCE_RANGES`] ranges on each side.
 fn plausible_range(y: &[f64]) -> (f64, f64) {
     let lo = y.iter().copied().fold(f64::INFINITY, f64::min);
@@ -493,6 +587,7 @@ impl FittedNarx {
                 .find(|s| s.name == o.name)
                 .map(|s| &s.values[..]);
             let s = self.series(rec, o, measured);
+            let mut diverged_members = Vec::new();
             let (z, diverged_at) = match mode {
                 Mode::OneStep => {
                     if measured.is_none() {
@@ -505,11 +600,16 @@ impl FittedNarx {
                     let d = Design::new(&s, reg);
                     let mut acts = vec![0.0; o.network.acts_len()];
                     let mut z = s.y[..start].to_vec();
+                    let k = 1 + o.ensemble.len();
                     for (i, row) in d.x.chunks_exact(d.width).enumerate() {
-                        o.network.forward(row, &mut acts);
-                        z.push(
-                            reg.base(&s.y, start + i) + reg.scale() * o.network.output(&acts)[0],
-                        );
+                        // one network: exactly the single-network arithmetic
+                        let mut sum = 0.0;
+                        for net in o.members() {
+                            net.forward(row, &mut acts);
+                            sum += net.output(&acts)[0];
+                        }
+                        let mean = if k == 1 { sum } else { sum / k as f64 };
+                        z.push(reg.base(&s.y, start + i) + reg.scale() * mean);
                     }
                     (z, None)
                 }
@@ -517,7 +617,45 @@ impl FittedNarx {
                     let r = (o.train_max - o.train_min).max(f64::MIN_POSITIVE);
                     let lo = (o.train_min - DIVERGENCE_RANGES * r - o.scaling.mean) / o.scaling.std;
                     let hi = (o.train_max + DIVERGENCE_RANGES * r - o.scaling.mean) / o.scaling.std;
-                    free_run_fast(&o.network, &o.regressor, &s, lo, hi)
+                    if o.ensemble.is_empty() {
+                        let (z, d) = free_run_fast(&o.network, &o.regressor, &s, lo, hi);
+                        if d.is_some() {
+                            diverged_members.push(0);
+                        }
+                        (z, d)
+                    } else {
+                        let runs: Vec<(Vec<f64>, Option<usize>)> = o
+                            .members()
+                            .map(|net| free_run_fast(net, &o.regressor, &s, lo, hi))
+                            .collect();
+                        let mut first: Option<usize> = None;
+                        for (i, r) in runs.iter().enumerate() {
+                            if let Some(d) = r.1 {
+                                diverged_members.push(i);
+                                first = Some(first.map_or(d, |f| f.min(d)));
+                            }
+                        }
+                        let kept: Vec<&Vec<f64>> = runs
+                            .iter()
+                            .filter(|r| r.1.is_none())
+                            .map(|r| &r.0)
+                            .collect();
+                        if kept.is_empty() {
+                            // every member diverged: the output diverged (the earliest)
+                            let len = runs.iter().map(|r| r.0.len()).min().unwrap_or(0);
+                            let k = runs.len() as f64;
+                            let z = (0..len)
+                                .map(|t| runs.iter().map(|r| r.0[t]).sum::<f64>() / k)
+                                .collect();
+                            (z, first)
+                        } else {
+                            let k = kept.len() as f64;
+                            let z = (0..s.len())
+                                .map(|t| kept.iter().map(|r| r[t]).sum::<f64>() / k)
+                                .collect();
+                            (z, None)
+                        }
+                    }
                 }
             };
             out.push(OutputPrediction {
@@ -525,6 +663,7 @@ impl FittedNarx {
                 values: z.iter().map(|v| o.scaling.invert(*v)).collect(),
                 start,
                 diverged_at,
+                diverged_members,
             });
         }
         Ok(out)
@@ -622,23 +761,27 @@ impl FittedNarx {
                     o.name
                 ));
             }
-            let net = &o.network;
-            if net.sizes.len() < 3 || net.sizes[0] != width || net.sizes[net.sizes.len() - 1] != 1 {
-                return Err(format!(
-                    "output `{}`: network sizes {:?} do not fit a regressor of width {width}",
-                    o.name, net.sizes
-                ));
-            }
-            let np = super::mlp::parameter_count(&net.sizes, net.bypass);
-            if net.params.len() != np {
-                return Err(format!(
-                    "output `{}`: {} parameters, the network shape needs {np}",
-                    o.name,
-                    net.params.len()
-                ));
-            }
-            if let Some(i) = net.params.iter().position(|p| !p.is_finite()) {
-                return Err(format!("output `{}`: parameter {i} is not finite", o.name));
+            for net in o.members() {
+                if net.sizes.len() < 3
+                    || net.sizes[0] != width
+                    || net.sizes[net.sizes.len() - 1] != 1
+                {
+                    return Err(format!(
+                        "output `{}`: network sizes {:?} do not fit a regressor of width {width}",
+                        o.name, net.sizes
+                    ));
+                }
+                let np = super::mlp::parameter_count(&net.sizes, net.bypass);
+                if net.params.len() != np {
+                    return Err(format!(
+                        "output `{}`: {} parameters, the network shape needs {np}",
+                        o.name,
+                        net.params.len()
+                    ));
+                }
+                if let Some(i) = net.params.iter().position(|p| !p.is_finite()) {
+                    return Err(format!("output `{}`: parameter {i} is not finite", o.name));
+                }
             }
             let sc = [o.scaling.mean, o.scaling.std, o.train_min, o.train_max];
             if !sc.iter().all(|v| v.is_finite()) || o.scaling.std <= 0.0 {
@@ -677,6 +820,9 @@ pub struct OutputEvaluation {
     pub diverged_at_train: Option<usize>,
     /// Sample of the test free run where it diverged.
     pub diverged_at_test: Option<usize>,
+    /// Ensemble members whose test free run diverged (left out of the mean).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub diverged_members_test: Vec<usize>,
 }
 
 impl FittedNarx {
@@ -712,6 +858,7 @@ impl FittedNarx {
                 fr_test,
                 diverged_at_train: fr_tr[i].diverged_at,
                 diverged_at_test: fr_te[i].diverged_at,
+                diverged_members_test: fr_te[i].diverged_members.clone(),
             });
         }
         Ok(out)

@@ -317,11 +317,13 @@ impl NarxConfig {
                 train_max: hi,
                 regressor: reg,
                 network: net,
+                ensemble: Vec::new(),
                 training: OutputTraining {
                     train_samples,
                     validation_samples: n_total - train_samples,
                     restarts: results.into_iter().map(|r| r.1).collect(),
                     chosen_restart: chosen,
+                    ensemble_restarts: Vec::new(),
                 },
             });
         }
