@@ -149,6 +149,24 @@ fn names_str(v: &[String]) -> String {
     format!("[{}]", v.join(", "))
 }
 
+/// The restart with the lowest free-run validation error (the first on ties; a restart whose
+/// free run diverged, `None`, only when every one did).
+pub(crate) fn best_restart<'a>(records: impl Iterator<Item = &'a RestartRecord>) -> usize {
+    let scores: Vec<Option<f64>> = records.map(|r| r.selection_mse).collect();
+    let mut chosen = 0;
+    for (i, s) in scores.iter().enumerate() {
+        let better = match (s, scores[chosen]) {
+            (Some(a), Some(b)) => *a < b,
+            (Some(_), None) => true,
+            _ => false,
+        };
+        if better {
+            chosen = i;
+        }
+    }
+    chosen
+}
+
 impl NarxConfig {
     /// Fit one network per output on a training record whose inputs and outputs are the
     /// configuration's signals (in order). With the default protocol and
@@ -299,17 +317,7 @@ impl NarxConfig {
         let mut outputs = Vec::new();
         for (o, sig) in train.outputs.iter().enumerate() {
             let mine = &results[o * restarts..(o + 1) * restarts];
-            let mut chosen = 0;
-            for (i, r) in mine.iter().enumerate() {
-                let better = match (r.1.selection_mse, mine[chosen].1.selection_mse) {
-                    (Some(a), Some(b)) => a < b,
-                    (Some(_), None) => true,
-                    _ => false,
-                };
-                if better {
-                    chosen = i;
-                }
-            }
+            let chosen = best_restart(mine.iter().map(|r| &r.1));
             let net = mine[chosen].0.clone();
             if !net.params.iter().all(|p| p.is_finite()) {
                 return Err(NarxError::NonFiniteWeights {

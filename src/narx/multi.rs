@@ -291,17 +291,7 @@ impl NarxConfig {
                     )
                 })
                 .collect();
-            let mut chosen = 0;
-            for (i, res) in results.iter().enumerate() {
-                let better = match (res.1.selection_mse, results[chosen].1.selection_mse) {
-                    (Some(a), Some(b)) => a < b,
-                    (Some(_), None) => true,
-                    _ => false,
-                };
-                if better {
-                    chosen = i;
-                }
-            }
+            let chosen = super::model::best_restart(results.iter().map(|r| &r.1));
             let net = results[chosen].0.clone();
             if !net.params.iter().all(|p| p.is_finite()) {
                 return Err(NarxError::NonFiniteWeights {
