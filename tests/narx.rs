@@ -9,7 +9,7 @@ use hystbench::data::{IoRecord, Signal};
 use hystbench::effect::basis::feature_specs;
 use hystbench::effect::EffectName;
 use hystbench::narx::synthetic::{seed_1dof, seed_2dof, Plant1};
-use hystbench::narx::{FittedNarx, Mode, NarxConfig, NarxError, Protocol};
+use hystbench::narx::{FittedNarx, Interaction, Mode, NarxConfig, NarxError, Protocol};
 use std::process::Command;
 
 fn config(rec: &IoRecord) -> NarxConfig {
@@ -132,6 +132,59 @@ fn default_protocol_on_the_2dof_record_with_250_training_samples() {
         let r2 = r2.expect("no divergence");
         assert!(r2 >= 0.98, "output {i}: free-run test R^2 {r2}");
     }
+}
+
+/// The default network of a 2-input record is additive in the inputs: with the output lags
+/// held, the effect of moving u1 does not depend on u2 (the mixed difference is zero), and the
+/// cut weights are still exactly zero after training. `Interaction::Full` mixes them.
+#[test]
+fn additive_interaction_keeps_the_inputs_apart() {
+    let rec = seed_2dof(3);
+    let (train, _) = rec.split_halves();
+    let mixed = |interaction| {
+        let mut cfg = quick(config(&train));
+        cfg.interaction = interaction;
+        cfg.robust.ensemble = Some(1);
+        let m = cfg.fit(&train).unwrap();
+        let net = &m.outputs[0].network;
+        let lags = m.config.lags;
+        let width = net.sizes[0];
+        assert_eq!(width, lags.output + 2 * lags.input);
+        let mut acts = vec![0.0; net.acts_len()];
+        let mut f = |x: &[f64]| {
+            net.forward(x, &mut acts);
+            net.output(&acts)[0]
+        };
+        let x: Vec<f64> = (0..width).map(|i| 0.3 * ((i as f64) * 1.7).sin()).collect();
+        let shift = |x: &[f64], signal: usize, by: f64| {
+            let mut x = x.to_vec();
+            let from = lags.output + signal * lags.input;
+            x[from..from + lags.input].iter_mut().for_each(|v| *v += by);
+            x
+        };
+        let x1 = shift(&x, 0, 0.8);
+        let x2 = shift(&x, 1, -0.6);
+        let x12 = shift(&x1, 1, -0.6);
+        let d = f(&x12) - f(&x1) - f(&x2) + f(&x);
+        let h = net.sizes[1];
+        let cut = (0..h)
+            .flat_map(|j| (0..width).map(move |c| (j, c)))
+            .filter(|&(j, c)| c >= lags.output && (c - lags.output) / lags.input != j % 2)
+            .map(|(j, c)| net.params[j * width + c])
+            .collect::<Vec<f64>>();
+        (d, cut)
+    };
+    let (d, cut) = mixed(Interaction::Additive);
+    assert!(d.abs() < 1e-12, "mixed difference {d}");
+    assert!(cut.iter().all(|w| *w == 0.0), "{cut:?}");
+    let (d, cut) = mixed(Interaction::Full);
+    assert!(d.abs() > 1e-6, "a full network mixes the inputs: {d}");
+    assert!(cut.iter().any(|w| *w != 0.0));
+    // each input needs its own neurons
+    let mut cfg = config(&train);
+    cfg.neurons = 1;
+    let e = cfg.check().unwrap_err();
+    assert!(e.to_string().contains("per input"), "{e}");
 }
 
 #[test]

@@ -46,7 +46,7 @@ use crate::effect::bouc_wen::BoucWenSpec;
 use crate::effect::viscous::rate;
 use crate::effect::Operator;
 use crate::metrics;
-use crate::narx::{FittedNarx, Lags, Mode, NarxConfig, NarxError};
+use crate::narx::{FittedNarx, Interaction, Lags, Mode, NarxConfig, NarxError};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -747,6 +747,8 @@ pub fn narx_config() -> NarxConfig {
         delay: 1,
     };
     c.neurons = NARX_NEURONS;
+    // the current scales the damper's force (a product of the inputs' effects): not additive
+    c.interaction = Interaction::Full;
     c.robust.restarts = Some(2);
     c.robust.sim_steps = 600;
     c

@@ -5,7 +5,7 @@ use crate::data::{check_writable, read_csv, write_atomic, IoRecord};
 use crate::effect::basis::{self, FeatureSpec};
 use crate::effect::EffectName;
 use crate::narx::model::OutputEvaluation;
-use crate::narx::{FittedNarx, Lags, NarxConfig, OptimizerKind, Protocol};
+use crate::narx::{FittedNarx, Interaction, Lags, NarxConfig, OptimizerKind, Protocol};
 use anyhow::Context;
 use clap::Args;
 use std::path::PathBuf;
@@ -63,6 +63,11 @@ pub struct NetArgs {
     /// Hidden tanh layers.
     #[arg(long, default_value_t = 1)]
     pub layers: usize,
+    /// How the inputs meet in the network: additive (hidden neurons grouped by input, each
+    /// group sees the output lags and its own input; the default) or full (every neuron sees
+    /// every input; the default with --protocol study, as in the source study).
+    #[arg(long, value_enum)]
+    pub interaction: Option<Interaction>,
     /// Output lags (default: --lags).
     #[arg(long)]
     pub output_lags: Option<usize>,
@@ -129,6 +134,10 @@ impl NetArgs {
         };
         c.neurons = self.neurons;
         c.layers = self.layers;
+        c.interaction = self.interaction.unwrap_or(match self.protocol {
+            Protocol::Default => Interaction::Additive,
+            Protocol::Study => Interaction::Full,
+        });
         c.protocol = self.protocol;
         c.optimizer = self.optimizer.unwrap_or(match self.protocol {
             Protocol::Default => OptimizerKind::Adam,

@@ -60,6 +60,9 @@ pub struct SweepNetArgs {
     /// Hidden tanh layers.
     #[arg(long, default_value_t = 1)]
     pub layers: usize,
+    /// How the inputs meet in the network (additive by default, full with --protocol study).
+    #[arg(long, value_enum)]
+    pub interaction: Option<crate::narx::Interaction>,
     /// Optimizer (default: adam; rmsprop with --protocol study).
     #[arg(long, value_enum)]
     pub optimizer: Option<crate::narx::OptimizerKind>,
@@ -124,6 +127,7 @@ fn config(a: &SweepArgs, s: &Setting, inputs: Vec<String>, outputs: Vec<String>)
     let net = NetArgs {
         neurons: s.neurons,
         layers: a.net.layers,
+        interaction: a.net.interaction,
         output_lags: None,
         input_lags: None,
         delay: 1,

@@ -1,6 +1,7 @@
 //! The unfitted NARX model: which signals, which lags, which network, how to train it.
 
 use super::regressors::Lags;
+use super::mlp::Mlp;
 use super::NarxError;
 use crate::effect::basis::FeatureSpec;
 use crate::effect::EffectName;
@@ -29,6 +30,24 @@ pub enum Protocol {
     Study,
 }
 
+/// How the exogenous signals meet inside the network.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Interaction {
+    /// Every hidden neuron sees every regressor column (the source study's MLP; the value of
+    /// model files written before this setting existed).
+    #[default]
+    Full,
+    /// Additive in the inputs: the hidden neurons are split into one group per input (neuron j
+    /// serves input j mod m); a group sees the output lags and the lags of its own input and of
+    /// the features computed from it. The inputs' contributions add up (through the output
+    /// lags they still shape each other's dynamics), as the paths from separate electrodes
+    /// superpose in a 2-DoF piezo cantilever (PHYSICS.md section 4). A short record visits only
+    /// some combinations of the inputs; a full network maps the others by extrapolation, an
+    /// additive one does not need them. With one input it is the full network.
+    Additive,
+}
+
 /// An unfitted NARX model (one MISO network per output, all exogenous signals in each).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -42,6 +61,9 @@ pub struct NarxConfig {
     pub neurons: usize,
     /// Hidden tanh layers.
     pub layers: usize,
+    /// How the inputs meet inside the network (default of [`NarxConfig::new`]: additive).
+    #[serde(default)]
+    pub interaction: Interaction,
     pub optimizer: OptimizerKind,
     /// Learning rate of the one-step phase.
     pub lr: f64,
@@ -217,6 +239,7 @@ impl NarxConfig {
             },
             neurons: 10,
             layers: 1,
+            interaction: Interaction::Additive,
             optimizer: OptimizerKind::Adam,
             lr: 0.01,
             batch: 128,
@@ -272,6 +295,13 @@ impl NarxConfig {
         if self.layers == 0 {
             return bad("layers", "0".into(), "needs at least one hidden layer");
         }
+        if self.interaction == Interaction::Additive && self.neurons < self.inputs.len() {
+            return bad(
+                "neurons",
+                self.neurons.to_string(),
+                "interaction additive gives each input its own neurons: at least one per input (raise --neurons or use --interaction full)",
+            );
+        }
         if !(self.lr.is_finite() && self.lr > 0.0) {
             return bad("lr", self.lr.to_string(), "must be a finite number > 0");
         }
@@ -326,6 +356,26 @@ impl NarxConfig {
             );
         }
         Ok(())
+    }
+
+    /// A fresh network for one output: Glorot weights from `seed`, the hidden neurons grouped
+    /// by input when the interaction is additive.
+    pub fn network(&self, bypass: bool, seed: u64) -> Mlp {
+        let net = Mlp::glorot(&self.sizes(), bypass, seed);
+        match self.interaction {
+            Interaction::Full => net,
+            Interaction::Additive => {
+                // exogenous signal -> the input it comes from
+                let source: Vec<usize> = (0..self.inputs.len())
+                    .chain(self.features.iter().map(|f| f.input()))
+                    .collect();
+                let mut columns = vec![None; self.lags.output];
+                for s in source {
+                    columns.extend(std::iter::repeat_n(Some(s), self.lags.input));
+                }
+                net.grouped(&columns, self.inputs.len())
+            }
+        }
     }
 
     /// Network layer widths for `n_signals` exogenous signals.

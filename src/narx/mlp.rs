@@ -25,6 +25,10 @@ pub struct Mlp {
     pub bypass: bool,
     /// Flat parameters: per layer W (rows = outputs, row-major) then b; then the bypass matrix.
     pub params: Vec<f64>,
+    /// Weights held at zero by training (a block-structured network, see [`Mlp::grouped`]);
+    /// not stored in model files: the zeros are in `params`.
+    #[serde(skip)]
+    pub held_zero: Vec<usize>,
 }
 
 /// tanh as 1 - 2 / (exp(2x) + 1), with `exp` written out in plain arithmetic (Cody-Waite
@@ -121,6 +125,48 @@ impl Mlp {
             sizes: sizes.to_vec(),
             bypass,
             params,
+            held_zero: Vec::new(),
+        }
+    }
+
+    /// Split the hidden neurons into `groups` groups (neuron j in group j mod `groups`) that do
+    /// not see each other's inputs: a first-layer neuron sees input column c only if
+    /// `column_group[c]` is `None` (shared by all groups) or its own group; a deeper hidden
+    /// neuron sees only its own group in the layer before. The output layer and the bypass see
+    /// everything, so the network is a sum of one sub-network per group. The cut weights are
+    /// set to zero and held there by training ([`Mlp::hold`]). One group leaves the network as
+    /// it is.
+    pub fn grouped(mut self, column_group: &[Option<usize>], groups: usize) -> Mlp {
+        self.held_zero.clear();
+        if groups < 2 {
+            return self;
+        }
+        let mut off = 0;
+        for l in 0..self.sizes.len() - 2 {
+            let (ni, no) = (self.sizes[l], self.sizes[l + 1]);
+            for j in 0..no {
+                for c in 0..ni {
+                    let sees = if l == 0 {
+                        column_group[c].is_none_or(|g| g == j % groups)
+                    } else {
+                        c % groups == j % groups
+                    };
+                    if !sees {
+                        self.params[off + j * ni + c] = 0.0;
+                        self.held_zero.push(off + j * ni + c);
+                    }
+                }
+            }
+            off += ni * no + no;
+        }
+        self
+    }
+
+    /// Zero the gradient of the weights held at zero (before an optimiser step).
+    #[inline]
+    pub fn hold(&self, g: &mut [f64]) {
+        for &i in &self.held_zero {
+            g[i] = 0.0;
         }
     }
 

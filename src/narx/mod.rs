@@ -5,7 +5,8 @@
 //!
 //! - [`regressors`]: lags, delay, standardisation; extra exogenous signals (features from the
 //!   effect library) enter exactly like inputs;
-//! - [`mlp`]: a hand-written network with an optional linear bypass;
+//! - [`mlp`]: a hand-written network with an optional linear bypass and hidden neurons grouped
+//!   by input ([`Interaction`]);
 //! - [`kernel`]: batched forward/backward of one-hidden-layer networks (the training hot loop);
 //! - [`train`]: RMSProp / Adam one-step training, least-squares output-layer start,
 //!   simulation-error training over windows, free run with divergence detection;
@@ -28,7 +29,7 @@ pub mod regressors;
 pub mod synthetic;
 pub mod train;
 
-pub use config::{NarxConfig, OptimizerKind, Protocol, RobustSettings};
+pub use config::{Interaction, NarxConfig, OptimizerKind, Protocol, RobustSettings};
 pub use error::NarxError;
 pub use model::{FittedNarx, Mode, OutputPrediction};
 pub use regressors::Lags;

@@ -372,10 +372,9 @@ impl NarxConfig {
         let lags = self.lags;
         let start = lags.start();
         let n = s.len();
-        let sizes = self.sizes();
         match self.protocol {
             Protocol::Study => {
-                let mut net = Mlp::glorot(&sizes, false, stream_seed(seed, 1));
+                let mut net = self.network(false, stream_seed(seed, 1));
                 let d = Design::new(s, reg);
                 let rec = train_one_step(
                     &mut net,
@@ -412,7 +411,7 @@ impl NarxConfig {
                 let fit = s.slice(0..fit_end);
                 let d_fit = Design::new(&fit, reg);
                 let d_val = (fit_end < n).then(|| Design::new(&s.slice(fit_end - start..n), reg));
-                let mut net = Mlp::glorot(&sizes, r.bypass, stream_seed(seed, 1));
+                let mut net = self.network(r.bypass, stream_seed(seed, 1));
                 init_output_layer(&mut net, &d_fit, 1e-8);
                 let one_step = train_one_step(
                     &mut net,

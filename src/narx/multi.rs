@@ -241,12 +241,11 @@ impl NarxConfig {
                 }
                 Some(sum / val_runs.len() as f64)
             };
-            let sizes = self.sizes();
             let results: Vec<(Mlp, RestartRecord)> = (0..restarts)
                 .into_par_iter()
                 .map(|k| {
                     let seed = stream_seed(self.seed, (o as u64) << 32 | k as u64);
-                    let mut net = Mlp::glorot(&sizes, r.bypass, stream_seed(seed, 1));
+                    let mut net = self.network(r.bypass, stream_seed(seed, 1));
                     init_output_layer(&mut net, &d_fit, 1e-8);
                     let one_step = train_one_step(
                         &mut net,

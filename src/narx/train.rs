@@ -187,6 +187,7 @@ pub fn train_one_step(
             let scale = 2.0 / chunk.len() as f64;
             if batched {
                 kernel::batch_gradient(mlp, &train.x, &train.t, chunk, scale, &mut grad, &mut bw);
+                mlp.hold(&mut grad);
                 opt.step(&mut mlp.params, &grad);
                 continue;
             }
@@ -203,6 +204,7 @@ pub fn train_one_step(
                     mlp.backward(x, &acts, &[scale * e], &mut grad, None, &mut scratch);
                 }
             }
+            mlp.hold(&mut grad);
             opt.step(&mut mlp.params, &grad);
         }
         epochs_run = epoch;
@@ -706,6 +708,7 @@ pub fn train_simulation_error(
             continue;
         }
         skipped = 0;
+        mlp.hold(&mut grad);
         if norm > 1.0 {
             grad.iter_mut().for_each(|g| *g /= norm);
         }
