@@ -110,8 +110,8 @@ pub struct NetArgs {
     /// Fraction of the training record kept for validation (default protocol).
     #[arg(long)]
     pub validation_fraction: Option<f64>,
-    /// Networks kept per output (the best restarts; predictions are their mean). Default:
-    /// chosen from 3, 5 or all restarts on records under 1,000 samples, 1 on longer ones.
+    /// Networks kept per output (the best restarts; predictions are their median, sample by
+    /// sample). Default: 8 on records under 1,000 samples, 1 on longer ones.
     #[arg(long)]
     pub ensemble: Option<usize>,
 }
@@ -337,15 +337,19 @@ fn run_with(
         for (e, o) in eval.iter().zip(&model.outputs) {
             if !o.ensemble.is_empty() {
                 println!(
-                    "{}: ensemble of {} networks (restarts {:?}){}",
+                    "{}: ensemble of {} networks (restarts {:?}, predictions: their {}){}",
                     o.name,
                     1 + o.ensemble.len(),
                     o.training.ensemble_restarts,
+                    match model.config.robust.combine {
+                        crate::narx::config::Combine::Mean => "mean",
+                        crate::narx::config::Combine::Median => "median",
+                    },
                     if e.diverged_members_test.is_empty() {
                         String::new()
                     } else {
                         format!(
-                            "; members {:?} diverged on the test record and were left out of the mean",
+                            "; members {:?} diverged on the test record and were left out",
                             e.diverged_members_test
                         )
                     }

@@ -129,18 +129,54 @@ pub struct RobustSettings {
     #[serde(default = "feature_gain")]
     pub feature_gain: f64,
     /// Ensemble: the model keeps this many restarts (best training free runs first) per output
-    /// and predicts with the mean of their one-step predictions and of their free runs.
-    /// `None` (default): on records under [`SHORT_RECORD`] samples (with
-    /// `short_record_settings`) the size is chosen from {3, 5, all non-diverged restarts} by the
-    /// training free run of the mean (see [`ENSEMBLE_SIZES`]); on longer records one network.
-    /// `Some(1)`: one network (the best restart) everywhere.
+    /// and predicts with their [`Combine`] (one-step predictions and free runs alike). `None`
+    /// (default): [`SHORT_ENSEMBLE`] networks on records under [`SHORT_RECORD`] samples (with
+    /// `short_record_settings`), one network on longer records. `Some(1)`: one network (the
+    /// best restart) everywhere.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ensemble: Option<usize>,
+    /// How the members of an ensemble are combined, sample by sample. Model files written
+    /// before this setting existed used the mean (the value when the field is missing); new
+    /// models use the median.
+    #[serde(default)]
+    pub combine: Combine,
 }
 
-/// The ensemble sizes tried on short records (`usize::MAX`: every restart whose training free
-/// run did not diverge).
-pub const ENSEMBLE_SIZES: [usize; 3] = [3, 5, usize::MAX];
+/// Networks kept per output on short records (the median of 8 free runs: one or two members
+/// that extrapolate wildly out of a short record do not move it).
+pub const SHORT_ENSEMBLE: usize = 8;
+
+/// How an ensemble's predictions are combined at each sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Combine {
+    /// The mean of the members.
+    #[default]
+    Mean,
+    /// The median of the members (the mean of the middle two for an even number).
+    Median,
+}
+
+impl Combine {
+    /// The members' values combined (reorders `v`); one value is returned as it is.
+    pub fn apply(self, v: &mut [f64]) -> f64 {
+        let k = v.len();
+        if k == 1 {
+            return v[0];
+        }
+        match self {
+            Combine::Mean => v.iter().sum::<f64>() / k as f64,
+            Combine::Median => {
+                v.sort_unstable_by(|a, b| a.total_cmp(b));
+                if k % 2 == 1 {
+                    v[k / 2]
+                } else {
+                    0.5 * (v[k / 2 - 1] + v[k / 2])
+                }
+            }
+        }
+    }
+}
 
 fn feature_gain() -> f64 {
     0.1
@@ -171,6 +207,7 @@ impl Default for RobustSettings {
             try_features: vec![EffectName::Hysteresis],
             feature_gain: feature_gain(),
             ensemble: None,
+            combine: Combine::Median,
         }
     }
 }
@@ -187,13 +224,12 @@ impl RobustSettings {
         })
     }
 
-    /// The ensemble sizes to choose from on a training record of `n` samples: one size when
-    /// it is fixed (`ensemble`, or 1 on records of [`SHORT_RECORD`] samples and more).
-    pub fn ensemble_sizes(&self, n: usize) -> Vec<usize> {
+    /// Networks kept per output on a training record of `n` samples.
+    pub fn ensemble_size(&self, n: usize) -> usize {
         match self.ensemble {
-            Some(k) => vec![k],
-            None if n < SHORT_RECORD && self.short_record_settings => ENSEMBLE_SIZES.to_vec(),
-            None => vec![1],
+            Some(k) => k,
+            None if n < SHORT_RECORD && self.short_record_settings => SHORT_ENSEMBLE,
+            None => 1,
         }
     }
 

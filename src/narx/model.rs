@@ -325,11 +325,11 @@ impl NarxConfig {
                     lr: self.lr,
                 });
             }
-            let sizes = match self.protocol {
-                Protocol::Default => self.robust.ensemble_sizes(n),
-                Protocol::Study => vec![1],
+            let size = match self.protocol {
+                Protocol::Default => self.robust.ensemble_size(n),
+                Protocol::Study => 1,
             };
-            let members = choose_ensemble(mine, chosen, &sizes, &prepared[o].1, &regressors[o]);
+            let members = choose_ensemble(mine, chosen, size);
             let ensemble: Vec<Mlp> = members.iter().skip(1).map(|&i| mine[i].0.clone()).collect();
             outputs.push(OutputModel {
                 name: sig.name.clone(),
@@ -459,17 +459,9 @@ impl NarxConfig {
     }
 }
 
-/// The restarts kept for one output (`chosen` first). With several candidate sizes, the
-/// restarts are ranked by their free-run selection MSE (diverged ones left out) and the size
-/// whose mean free run fits the training series best is kept (ties: the smaller); all of this
-/// on the training record only.
-fn choose_ensemble(
-    mine: &[(Mlp, RestartRecord, usize, usize)],
-    chosen: usize,
-    sizes: &[usize],
-    s: &Series,
-    reg: &Regressor,
-) -> Vec<usize> {
+/// The restarts kept for one output: `chosen` first, then the others by their free-run
+/// selection MSE (diverged ones left out), at most `size` (training record only).
+fn choose_ensemble(mine: &[(Mlp, RestartRecord, usize, usize)], chosen: usize, size: usize) -> Vec<usize> {
     let mut ranked: Vec<(usize, f64)> = mine
         .iter()
         .enumerate()
@@ -482,45 +474,8 @@ fn choose_ensemble(
     ranked.sort_by(|a, b| a.1.total_cmp(&b.1));
     let mut order: Vec<usize> = vec![chosen];
     order.extend(ranked.iter().map(|r| r.0).filter(|&i| i != chosen));
-    let finite = ranked.len().max(1);
-    let mut ks: Vec<usize> = sizes.iter().map(|&k| k.min(finite).max(1)).collect();
-    ks.dedup();
-    if ks.len() == 1 {
-        return order[..ks[0].min(order.len())].to_vec();
-    }
-    let (lo, hi) = plausible_range(&s.y);
-    let start = reg.lags.start();
-    let runs: Vec<Vec<f64>> = order
-        .iter()
-        .take(*ks.iter().max().unwrap_or(&1))
-        .map(|&i| {
-            let (y, div) = free_run_fast(&mine[i].0, reg, s, lo, hi);
-            if div.is_some() {
-                Vec::new()
-            } else {
-                y
-            }
-        })
-        .collect();
-    let mut best: Option<(usize, f64)> = None;
-    for &k in &ks {
-        let members = &runs[..k.min(runs.len())];
-        if members.iter().any(|r| r.len() != s.len()) {
-            continue;
-        }
-        let mse = (start..s.len())
-            .map(|t| {
-                let m = members.iter().map(|r| r[t]).sum::<f64>() / members.len() as f64;
-                (m - s.y[t]).powi(2)
-            })
-            .sum::<f64>()
-            / (s.len() - start).max(1) as f64;
-        if best.is_none_or(|b| mse < b.1) {
-            best = Some((k, mse));
-        }
-    }
-    let k = best.map_or(1, |b| b.0);
-    order[..k.min(order.len())].to_vec()
+    order.truncate(size.max(1));
+    order
 }
 
 /// The training range widened by [`DIVERGENCE_RANGES`] ranges on each side.
@@ -607,16 +562,15 @@ impl FittedNarx {
                     let d = Design::new(&s, reg);
                     let mut acts = vec![0.0; o.network.acts_len()];
                     let mut z = s.y[..start].to_vec();
-                    let k = 1 + o.ensemble.len();
+                    let combine = self.config.robust.combine;
+                    let mut v = vec![0.0; 1 + o.ensemble.len()];
                     for (i, row) in d.x.chunks_exact(d.width).enumerate() {
-                        // one network: exactly the single-network arithmetic
-                        let mut sum = 0.0;
-                        for net in o.members() {
+                        for (vj, net) in v.iter_mut().zip(o.members()) {
                             net.forward(row, &mut acts);
-                            sum += net.output(&acts)[0];
+                            *vj = net.output(&acts)[0];
                         }
-                        let mean = if k == 1 { sum } else { sum / k as f64 };
-                        z.push(reg.base(&s.y, start + i) + reg.scale() * mean);
+                        let c = combine.apply(&mut v);
+                        z.push(reg.base(&s.y, start + i) + reg.scale() * c);
                     }
                     (z, None)
                 }
@@ -647,20 +601,25 @@ impl FittedNarx {
                             .filter(|r| r.1.is_none())
                             .map(|r| &r.0)
                             .collect();
+                        let combine = self.config.robust.combine;
+                        let across = |runs: &[&Vec<f64>], len: usize| -> Vec<f64> {
+                            let mut v = vec![0.0; runs.len()];
+                            (0..len)
+                                .map(|t| {
+                                    for (vj, r) in v.iter_mut().zip(runs) {
+                                        *vj = r[t];
+                                    }
+                                    combine.apply(&mut v)
+                                })
+                                .collect()
+                        };
                         if kept.is_empty() {
                             // every member diverged: the output diverged (the earliest)
                             let len = runs.iter().map(|r| r.0.len()).min().unwrap_or(0);
-                            let k = runs.len() as f64;
-                            let z = (0..len)
-                                .map(|t| runs.iter().map(|r| r.0[t]).sum::<f64>() / k)
-                                .collect();
-                            (z, first)
+                            let all: Vec<&Vec<f64>> = runs.iter().map(|r| &r.0).collect();
+                            (across(&all, len), first)
                         } else {
-                            let k = kept.len() as f64;
-                            let z = (0..s.len())
-                                .map(|t| kept.iter().map(|r| r[t]).sum::<f64>() / k)
-                                .collect();
-                            (z, None)
+                            (across(&kept, s.len()), None)
                         }
                     }
                 }
