@@ -1,7 +1,7 @@
 //! The unfitted NARX model: which signals, which lags, which network, how to train it.
 
-use super::regressors::Lags;
 use super::mlp::Mlp;
+use super::regressors::Lags;
 use super::NarxError;
 use crate::effect::basis::FeatureSpec;
 use crate::effect::EffectName;

@@ -144,14 +144,15 @@ impl Mlp {
         let mut off = 0;
         for l in 0..self.sizes.len() - 2 {
             let (ni, no) = (self.sizes[l], self.sizes[l + 1]);
+            // the group of each column of this layer's input (None: every group's)
+            let group: Vec<Option<usize>> = if l == 0 {
+                column_group.to_vec()
+            } else {
+                (0..ni).map(|c| Some(c % groups)).collect()
+            };
             for j in 0..no {
-                for c in 0..ni {
-                    let sees = if l == 0 {
-                        column_group[c].is_none_or(|g| g == j % groups)
-                    } else {
-                        c % groups == j % groups
-                    };
-                    if !sees {
+                for (c, g) in group.iter().enumerate() {
+                    if g.is_some_and(|g| g != j % groups) {
                         self.params[off + j * ni + c] = 0.0;
                         self.held_zero.push(off + j * ni + c);
                     }

@@ -461,7 +461,11 @@ impl NarxConfig {
 
 /// The restarts kept for one output: `chosen` first, then the others by their free-run
 /// selection MSE (diverged ones left out), at most `size` (training record only).
-fn choose_ensemble(mine: &[(Mlp, RestartRecord, usize, usize)], chosen: usize, size: usize) -> Vec<usize> {
+fn choose_ensemble(
+    mine: &[(Mlp, RestartRecord, usize, usize)],
+    chosen: usize,
+    size: usize,
+) -> Vec<usize> {
     let mut ranked: Vec<(usize, f64)> = mine
         .iter()
         .enumerate()
