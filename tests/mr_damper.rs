@@ -9,7 +9,7 @@ use hystbench::diagnose::{diagnose, DiagnoseOptions};
 use hystbench::effect::hysteresis::HysteresisSpec;
 use hystbench::effect::EffectName;
 use hystbench::graybox::GreyBoxConfig;
-use hystbench::narx::{Lags, Mode, NarxConfig};
+use hystbench::narx::{Interaction, Lags, Mode, NarxConfig};
 use hystbench::plant::{Plant, PlantSpec};
 use hystbench::scenario::ScenarioSpec;
 use hystbench::simulator::simulate_scenario;
@@ -174,6 +174,8 @@ fn narx_trains_on_several_records() {
         delay: 1,
     };
     c.neurons = 6;
+    // the level scales the gain (u and the level multiply): not additive
+    c.interaction = Interaction::Full;
     c.robust.restarts = Some(1);
     c.robust.sim_steps = 60;
     let recs = vec![make(0.0, 1500, 1), make(1.0, 1500, 2)];
