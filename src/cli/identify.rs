@@ -356,6 +356,23 @@ fn run_with(
                 );
             }
         }
+        let c = &model.config;
+        println!(
+            "network: {} output lags, {} input lags (delay {}), {} x {} tanh neurons{}",
+            c.lags.output,
+            c.lags.input,
+            c.lags.delay,
+            c.layers,
+            c.neurons,
+            match c.interaction {
+                Interaction::Additive if c.inputs.len() > 1 => format!(
+                    ", additive in the inputs ({} groups of about {} neurons; --interaction full mixes them)",
+                    c.inputs.len(),
+                    c.neurons / c.inputs.len()
+                ),
+                _ => String::new(),
+            }
+        );
         if let Some(fs) = &model.feature_selection {
             let names: Vec<String> = fs.tried.iter().map(|e| e.to_string()).collect();
             println!(
