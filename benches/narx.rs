@@ -131,6 +131,8 @@ fn main() {
                 c.lr = lr;
                 c.batch = b;
                 c.seed = i as u64;
+                // as `hystbench sweep`: the grid studies the plain network (no feature selection)
+                c.robust.try_features.clear();
                 let m = c.fit(&train).unwrap();
                 m.evaluate(&train, &test).unwrap()[0].r2_fr_test
             })
