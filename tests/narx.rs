@@ -391,6 +391,51 @@ fn cli_identify_predict_and_refusals() {
         }
     }
     assert!(v["train_seconds"].is_number());
+    // the model file says how the inputs meet: additive by default, full on request
+    let text = std::fs::read_to_string(&model).unwrap();
+    let file: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(file["model"]["config"]["interaction"], "additive");
+    let full = dir.path().join("full.json");
+    let out = Command::new(exe)
+        .args([
+            "identify",
+            "--interaction",
+            "full",
+            "--restarts",
+            "2",
+            "--sim-steps",
+            "50",
+        ])
+        .args(["--json", "--data"])
+        .arg(&data)
+        .arg("--out")
+        .arg(&full)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&full).unwrap()).unwrap();
+    assert_eq!(file["model"]["config"]["interaction"], "full");
+    // one neuron for two inputs cannot be additive: a clear error, nothing written
+    let none = dir.path().join("none.json");
+    let out = Command::new(exe)
+        .args(["identify", "--neurons", "1", "--data"])
+        .arg(&data)
+        .arg("--out")
+        .arg(&none)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("neurons") && err.contains("--interaction full"),
+        "{err}"
+    );
+    assert!(!none.exists());
     // refuses to overwrite
     let again = Command::new(exe)
         .args(["identify", "--data"])
