@@ -422,3 +422,30 @@ impl NarxConfig {
         s
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn combine_takes_the_mean_or_the_median() {
+        assert_eq!(Combine::Median.apply(&mut [3.0, -1.0, 100.0]), 3.0);
+        assert_eq!(Combine::Median.apply(&mut [4.0, 1.0, 2.0, 100.0]), 3.0);
+        assert_eq!(Combine::Mean.apply(&mut [4.0, 1.0, 2.0, 1.0]), 2.0);
+        for c in [Combine::Mean, Combine::Median] {
+            assert_eq!(c.apply(&mut [-0.5]), -0.5);
+        }
+    }
+
+    #[test]
+    fn short_records_get_eight_networks_unless_told() {
+        let r = RobustSettings::default();
+        assert_eq!(r.ensemble_size(250), SHORT_ENSEMBLE);
+        assert_eq!(r.ensemble_size(SHORT_RECORD), 1);
+        let one = RobustSettings {
+            ensemble: Some(1),
+            ..RobustSettings::default()
+        };
+        assert_eq!(one.ensemble_size(250), 1);
+    }
+}
