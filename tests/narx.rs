@@ -204,6 +204,18 @@ fn quick(mut c: NarxConfig) -> NarxConfig {
     c
 }
 
+/// `hystbench identify --data <data> --out <out> <args>`.
+fn identify(data: &std::path::Path, out: &std::path::Path, args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_hystbench"))
+        .args(["identify", "--data"])
+        .arg(data)
+        .arg("--out")
+        .arg(out)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
 fn model_bytes(m: &FittedNarx) -> String {
     let mut m = m.clone();
     m.train_seconds = 0.0;
@@ -396,22 +408,19 @@ fn cli_identify_predict_and_refusals() {
     let file: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert_eq!(file["model"]["config"]["interaction"], "additive");
     let full = dir.path().join("full.json");
-    let out = Command::new(exe)
-        .args([
-            "identify",
+    let out = identify(
+        &data,
+        &full,
+        &[
             "--interaction",
             "full",
             "--restarts",
             "2",
             "--sim-steps",
             "50",
-        ])
-        .args(["--json", "--data"])
-        .arg(&data)
-        .arg("--out")
-        .arg(&full)
-        .output()
-        .unwrap();
+            "--json",
+        ],
+    );
     assert!(
         out.status.success(),
         "{}",
@@ -422,13 +431,7 @@ fn cli_identify_predict_and_refusals() {
     assert_eq!(file["model"]["config"]["interaction"], "full");
     // one neuron for two inputs cannot be additive: a clear error, nothing written
     let none = dir.path().join("none.json");
-    let out = Command::new(exe)
-        .args(["identify", "--neurons", "1", "--data"])
-        .arg(&data)
-        .arg("--out")
-        .arg(&none)
-        .output()
-        .unwrap();
+    let out = identify(&data, &none, &["--neurons", "1"]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -602,13 +605,7 @@ fn cli_identify_with_features_and_predict_on_another_record() {
     );
     let model = dir.path().join("m.json");
     // unknown effect: the valid names are listed, nothing written
-    let out = Command::new(exe)
-        .args(["identify", "--data"])
-        .arg(&a)
-        .args(["--features", "hysteresis,friction", "--out"])
-        .arg(&model)
-        .output()
-        .unwrap();
+    let out = identify(&a, &model, &["--features", "hysteresis,friction"]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -617,29 +614,14 @@ fn cli_identify_with_features_and_predict_on_another_record() {
     );
     assert!(!model.exists());
     // coupling needs two inputs
-    let out = Command::new(exe)
-        .args(["identify", "--data"])
-        .arg(&a)
-        .args(["--features", "coupling", "--out"])
-        .arg(&model)
-        .output()
-        .unwrap();
+    let out = identify(&a, &model, &["--features", "coupling"]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("two inputs"));
-    let out = Command::new(exe)
-        .args(["identify", "--data"])
-        .arg(&a)
-        .args([
-            "--features",
-            "hysteresis",
-            "--restarts",
-            "1",
-            "--json",
-            "--out",
-        ])
-        .arg(&model)
-        .output()
-        .unwrap();
+    let out = identify(
+        &a,
+        &model,
+        &["--features", "hysteresis", "--restarts", "1", "--json"],
+    );
     assert!(
         out.status.success(),
         "{}",
