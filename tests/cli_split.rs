@@ -91,5 +91,7 @@ fn a_record_with_a_pause_is_refused_with_the_way_out_and_split_makes_uniform_par
     // nothing overwritten without --force
     let o = hystbench(&["split", "--data", r, "--out", parts.to_str().unwrap()]);
     assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--force"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }

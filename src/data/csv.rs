@@ -172,16 +172,14 @@ impl Record {
         }
         self.check_increasing(name, t)?;
         let n = t.len();
-        // median step is robust against a single gap
-        let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-        steps.sort_by(f64::total_cmp);
-        let period = steps[steps.len() / 2];
+        // the median step is robust against a single gap
+        let steps = TimeSteps::of(t);
+        let period = steps.median;
         let tol = 0.01 * period;
         for (k, &tk) in t.iter().enumerate() {
             let expected = t[0] + k as f64 * period;
             let deviation = tk - expected;
             if deviation.abs() > tol + 1e-9 * tk.abs() * (n as f64).sqrt() {
-                let steps = TimeSteps::of(t);
                 let advice = if steps.gaps.is_empty() {
                     "resample it onto a uniform grid (`hystbench split` does, by linear interpolation)".to_string()
                 } else {

@@ -280,11 +280,16 @@ pub fn diagnose(
         .iter()
         .map(|r| r.effect)
         .find(|e| outputs.iter().any(|od| od.missing == Some(*e)));
-    let candidates: Vec<EffectName> = ranking
+    let mut candidates: Vec<EffectName> = ranking
         .iter()
         .map(|r| r.effect)
         .filter(|e| outputs.iter().any(|od| od.candidates.contains(e)))
         .collect();
+    if let Some(m) = missing {
+        // the named effect first, as on each output
+        candidates.retain(|c| *c != m);
+        candidates.insert(0, m);
+    }
     let mut summary = Vec::new();
     if let [first, second, ..] = candidates.as_slice() {
         let share = |e: &EffectName| {

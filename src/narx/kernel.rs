@@ -187,6 +187,22 @@ fn output_block(n: &Split, xb: &[f64], ab: &[f64]) -> Lanes {
     out
 }
 
+/// Errors `out - t` of block `c` of a packed batch of `b` samples (the padding lanes beyond
+/// the batch set to 0).
+#[inline(always)]
+fn block_error(n: &Split, xb: &[f64], ab: &[f64], tb: &[f64], c: usize, b: usize) -> Lanes {
+    let out = output_block(n, xb, ab);
+    let mut e = [0.0; LANES];
+    for l in 0..LANES {
+        e[l] = out[l] - tb[l];
+    }
+    let valid = b - c * LANES;
+    if valid < LANES {
+        e[valid..].fill(0.0);
+    }
+    e
+}
+
 /// Adds `u * v` lane-wise to `acc`.
 #[inline(always)]
 fn accumulate(acc: &mut Lanes, u: &Lanes, v: &[f64]) {
@@ -218,14 +234,9 @@ fn gradient(n: &Split, b: usize, scale: f64, grad: &mut [f64], w: &mut BatchWork
         .zip(w.g[..bp].chunks_exact_mut(LANES))
         .enumerate()
     {
-        let out = output_block(n, xb, ab);
-        let mut g = [0.0; LANES];
-        for l in 0..LANES {
-            g[l] = scale * (out[l] - gb[l]);
-        }
-        let valid = b - c * LANES;
-        if valid < LANES {
-            g[valid..].fill(0.0);
+        let mut g = block_error(n, xb, ab, gb, c, b);
+        for gl in g.iter_mut() {
+            *gl *= scale;
         }
         gb.copy_from_slice(&g);
         for l in 0..LANES {
@@ -273,15 +284,7 @@ fn sse(n: &Split, b: usize, w: &mut BatchWorkspace) -> f64 {
         .zip(w.g[..bp].chunks_exact(LANES))
         .enumerate()
     {
-        let out = output_block(n, xb, ab);
-        let mut e = [0.0; LANES];
-        for l in 0..LANES {
-            e[l] = out[l] - tb[l];
-        }
-        let valid = b - c * LANES;
-        if valid < LANES {
-            e[valid..].fill(0.0);
-        }
+        let e = block_error(n, xb, ab, tb, c, b);
         for l in 0..LANES {
             acc[l] += e[l] * e[l];
         }

@@ -1,6 +1,6 @@
 //! The fitted NARX model: fitting (the driver), prediction, scores and the model file.
 
-use super::config::{NarxConfig, Protocol, SHORT_RECORD};
+use super::config::{NarxConfig, Protocol};
 use super::mlp::Mlp;
 use super::regressors::{Regressor, RegressorForm, Series, Standardiser};
 use super::train::{
@@ -60,7 +60,8 @@ pub struct OutputModel {
     pub regressor: Regressor,
     pub network: Mlp,
     /// Further ensemble members (the networks of `training.ensemble_restarts[1..]`); empty: the
-    /// model is `network` alone. Predictions are the mean over `network` and these.
+    /// model is `network` alone. Predictions combine `network` and these
+    /// (`config.robust.combine`: the median for new models).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub ensemble: Vec<Mlp>,
     pub training: OutputTraining,
@@ -122,11 +123,12 @@ pub struct OutputPrediction {
     /// Shorter than the record when the free run diverged.
     pub values: Vec<f64>,
     pub start: usize,
-    /// First sample where the free run left the plausible range (for an ensemble: the first
-    /// sample where any member did).
+    /// First sample where the free run left the plausible range (for an ensemble: set only
+    /// when every member diverged, the earliest of them).
     pub diverged_at: Option<usize>,
-    /// Ensemble members (0: `network`) whose free run diverged. They are left out of the mean
-    /// (listed here, and in the evaluation); when every member diverged, the output diverged.
+    /// Ensemble members (0: `network`) whose free run diverged. They are left out of the
+    /// combination (listed here, and in the evaluation); when every member diverged, the
+    /// output diverged.
     pub diverged_members: Vec<usize>,
 }
 
@@ -175,11 +177,11 @@ impl NarxConfig {
     /// [`FeatureSelection`]); the chosen features end up in the fitted model's `config.features`.
     pub fn fit(&self, train: &IoRecord) -> Result<FittedNarx, NarxError> {
         self.check()?;
-        // A short record has no validation part (see `RobustSettings::for_record`): its
+        // Without a validation part (a short record, see `RobustSettings::for_record`) the
         // selection would score the training free run, which favours the richer model.
         if self.protocol != Protocol::Default
             || self.robust.try_features.is_empty()
-            || train.len() < SHORT_RECORD
+            || self.robust.for_record(train.len()).validation_fraction == 0.0
         {
             return self.fit_fixed(train);
         }
@@ -582,49 +584,42 @@ impl FittedNarx {
                     let r = (o.train_max - o.train_min).max(f64::MIN_POSITIVE);
                     let lo = (o.train_min - DIVERGENCE_RANGES * r - o.scaling.mean) / o.scaling.std;
                     let hi = (o.train_max + DIVERGENCE_RANGES * r - o.scaling.mean) / o.scaling.std;
-                    if o.ensemble.is_empty() {
-                        let (z, d) = free_run_fast(&o.network, &o.regressor, &s, lo, hi);
-                        if d.is_some() {
-                            diverged_members.push(0);
-                        }
-                        (z, d)
+                    // one network or an ensemble: the members' free runs, combined where
+                    // they did not diverge
+                    let runs: Vec<(Vec<f64>, Option<usize>)> = o
+                        .members()
+                        .map(|net| free_run_fast(net, &o.regressor, &s, lo, hi))
+                        .collect();
+                    diverged_members.extend(
+                        runs.iter()
+                            .enumerate()
+                            .filter(|(_, r)| r.1.is_some())
+                            .map(|(i, _)| i),
+                    );
+                    let kept: Vec<&Vec<f64>> = runs
+                        .iter()
+                        .filter(|r| r.1.is_none())
+                        .map(|r| &r.0)
+                        .collect();
+                    let combine = self.config.robust.combine;
+                    let across = |runs: &[&Vec<f64>], len: usize| -> Vec<f64> {
+                        let mut v = vec![0.0; runs.len()];
+                        (0..len)
+                            .map(|t| {
+                                for (vj, r) in v.iter_mut().zip(runs) {
+                                    *vj = r[t];
+                                }
+                                combine.apply(&mut v)
+                            })
+                            .collect()
+                    };
+                    if kept.is_empty() {
+                        // every member diverged: the output diverged (the earliest)
+                        let len = runs.iter().map(|r| r.0.len()).min().unwrap_or(0);
+                        let all: Vec<&Vec<f64>> = runs.iter().map(|r| &r.0).collect();
+                        (across(&all, len), runs.iter().filter_map(|r| r.1).min())
                     } else {
-                        let runs: Vec<(Vec<f64>, Option<usize>)> = o
-                            .members()
-                            .map(|net| free_run_fast(net, &o.regressor, &s, lo, hi))
-                            .collect();
-                        let mut first: Option<usize> = None;
-                        for (i, r) in runs.iter().enumerate() {
-                            if let Some(d) = r.1 {
-                                diverged_members.push(i);
-                                first = Some(first.map_or(d, |f| f.min(d)));
-                            }
-                        }
-                        let kept: Vec<&Vec<f64>> = runs
-                            .iter()
-                            .filter(|r| r.1.is_none())
-                            .map(|r| &r.0)
-                            .collect();
-                        let combine = self.config.robust.combine;
-                        let across = |runs: &[&Vec<f64>], len: usize| -> Vec<f64> {
-                            let mut v = vec![0.0; runs.len()];
-                            (0..len)
-                                .map(|t| {
-                                    for (vj, r) in v.iter_mut().zip(runs) {
-                                        *vj = r[t];
-                                    }
-                                    combine.apply(&mut v)
-                                })
-                                .collect()
-                        };
-                        if kept.is_empty() {
-                            // every member diverged: the output diverged (the earliest)
-                            let len = runs.iter().map(|r| r.0.len()).min().unwrap_or(0);
-                            let all: Vec<&Vec<f64>> = runs.iter().map(|r| &r.0).collect();
-                            (across(&all, len), first)
-                        } else {
-                            (across(&kept, s.len()), None)
-                        }
+                        (across(&kept, s.len()), None)
                     }
                 }
             };
@@ -790,7 +785,7 @@ pub struct OutputEvaluation {
     pub diverged_at_train: Option<usize>,
     /// Sample of the test free run where it diverged.
     pub diverged_at_test: Option<usize>,
-    /// Ensemble members whose test free run diverged (left out of the mean).
+    /// Ensemble members whose test free run diverged (left out of the combination).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub diverged_members_test: Vec<usize>,
 }

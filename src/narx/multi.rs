@@ -67,7 +67,8 @@ struct Part {
 impl NarxConfig {
     /// Fit on several records (same inputs, outputs and sampling period); see the module
     /// documentation. Needs the default protocol. With a single record this is a variant of
-    /// [`NarxConfig::fit`] (same phases), not bit-identical to it.
+    /// [`NarxConfig::fit`] (same phases), not bit-identical to it: no feature selection and
+    /// one network per output (the fitted model's config says so).
     pub fn fit_records(&self, records: &[IoRecord]) -> Result<FittedNarx, NarxError> {
         self.check()?;
         let t0 = std::time::Instant::now();
@@ -316,8 +317,12 @@ impl NarxConfig {
                 },
             });
         }
+        // what was done: no feature selection, one network per output
+        let mut config = self.clone();
+        config.robust.try_features.clear();
+        config.robust.ensemble = Some(1);
         Ok(FittedNarx {
-            config: self.clone(),
+            config,
             input_scaling,
             outputs,
             train_seconds: t0.elapsed().as_secs_f64(),
