@@ -2,7 +2,8 @@
 //! Run: `cargo bench --bench diagnose`.
 
 use hystbench::diagnose::{diagnose, DiagnoseOptions};
-use hystbench::effect::EffectName;
+use hystbench::effect::{creep, dynamics, hysteresis};
+use hystbench::plant::EffectSpecs;
 use hystbench::plant::PlantSpec;
 use hystbench::scenario::ScenarioSpec;
 use hystbench::simulator::simulate_scenario;
@@ -29,7 +30,7 @@ fn main() {
         .unwrap()
         .record;
     let mut model = truth.clone();
-    model.outputs[0].creep = None;
+    model.outputs[0].remove(creep::NAME);
     let model = model.check(&ppath).unwrap();
     let u: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
     let pred = model.simulate(&u, rec.ts).unwrap();
@@ -40,7 +41,7 @@ fn main() {
         let d = diagnose(
             &rec,
             &pred,
-            &[EffectName::Hysteresis, EffectName::Dynamics],
+            &[hysteresis::NAME, dynamics::NAME],
             &DiagnoseOptions::default(),
         );
         best = best.min(t0.elapsed().as_secs_f64());

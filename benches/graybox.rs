@@ -2,6 +2,7 @@
 //! samples (goal: under 10 s). Run with `cargo bench --bench graybox`.
 
 use hystbench::graybox::GreyBoxConfig;
+use hystbench::plant::EffectSpecs;
 use hystbench::plant::PlantSpec;
 use hystbench::scenario::ScenarioSpec;
 use hystbench::simulator::simulate_scenario;
@@ -22,7 +23,7 @@ fn main() {
     let plant_path = root.join("plants/creep_piezo.json");
     let mut spec = PlantSpec::read(&plant_path).unwrap();
     // the creep_piezo chain with a 120 Hz mode, so that 1 kHz sampling resolves it
-    if let Some(d) = spec.outputs[0].dynamics.as_mut() {
+    if let Some(d) = spec.outputs[0].get_mut::<hystbench::effect::dynamics::DynamicsSpec>() {
         d.natural_frequency_hz = 120.0;
         d.damping_ratio = 0.05;
     }

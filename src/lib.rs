@@ -26,6 +26,7 @@ pub mod graybox;
 pub mod metrics;
 pub mod model;
 pub mod narx;
+pub mod numeric;
 pub mod plant;
 pub mod plot;
 pub mod scenario;

@@ -142,6 +142,40 @@ pub fn ptp(x: &[f64]) -> f64 {
     }
 }
 
+/// Holds of the input: (start, end) index ranges where it stays within 0.1 % of its range for
+/// at least 0.5 s and 50 samples.
+pub fn holds(u: &[f64], ts: f64) -> Vec<(usize, usize)> {
+    let tol = 1e-3 * crate::metrics::ptp(u).max(f64::MIN_POSITIVE);
+    let min_len = ((0.5 / ts) as usize).max(50);
+    let mut out = Vec::new();
+    let mut start = 0;
+    for k in 1..=u.len() {
+        if k == u.len() || (u[k] - u[start]).abs() > tol {
+            if k - start >= min_len {
+                out.push((start, k));
+            }
+            start = k;
+        }
+    }
+    out
+}
+
+/// Pearson correlation of two signals (0 when either is constant).
+pub fn correlation(a: &[f64], b: &[f64]) -> f64 {
+    let (ma, mb) = (mean(a), mean(b));
+    let (mut s, mut sa, mut sb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        s += (x - ma) * (y - mb);
+        sa += (x - ma) * (x - ma);
+        sb += (y - mb) * (y - mb);
+    }
+    if sa > 0.0 && sb > 0.0 {
+        s / (sa * sb).sqrt()
+    } else {
+        0.0
+    }
+}
+
 /// Shoelace area of the (u, y) curve over the ordered samples (closed back to the start),
 /// divided by ptp(u) ptp(y): positive for a counter-clockwise loop, about 0 for a memoryless map.
 pub fn normalised_loop_area(u: &[f64], y: &[f64]) -> f64 {

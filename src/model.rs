@@ -5,8 +5,7 @@
 //! through the [`Model`] trait; [`load_model`] reads a file and picks the kind from its `format`.
 
 use crate::data::{DataError, IoRecord, Record};
-use crate::effect::hysteresis::Hysteresis;
-use crate::effect::EffectName;
+use crate::effect::{EffectName, StructureView};
 use crate::plant::{Plant, PlantError, PlantKind, PlantSpec};
 use std::path::{Path, PathBuf};
 
@@ -59,35 +58,29 @@ pub trait Model {
     }
 }
 
-/// The library effects a plant contains.
+/// The library effects a plant contains (chain order): those whose parameters it holds and
+/// that are active (a linear gain is no hysteresis), and those its structure shows (cross
+/// paths are coupling).
 pub fn plant_effects(plant: &Plant) -> Vec<EffectName> {
     let mut out = Vec::new();
     if let PlantKind::Chain(chains) = &plant.kind {
-        let mut add = |e| {
-            if !out.contains(&e) {
-                out.push(e)
+        for c in chains {
+            for e in c.paths.iter().flat_map(|p| p.effects()).chain(&c.filters) {
+                if e.is_active() && !out.contains(&e.effect()) {
+                    out.push(e.effect());
+                }
             }
+        }
+        let view = StructureView {
+            n_inputs: plant.inputs.len(),
+            path_inputs: chains
+                .iter()
+                .map(|c| c.paths.iter().map(|p| p.input).collect())
+                .collect(),
         };
-        for (o, c) in chains.iter().enumerate() {
-            for p in &c.paths {
-                if !matches!(p.hysteresis, Hysteresis::Linear(_)) {
-                    add(EffectName::Hysteresis);
-                }
-                if p.input != o.min(plant.inputs.len() - 1) {
-                    add(EffectName::Coupling);
-                }
-                if p.dynamics.is_some() {
-                    add(EffectName::Dynamics);
-                }
-                if p.viscous.is_some() {
-                    add(EffectName::Viscous);
-                }
-            }
-            if c.creep.is_some() {
-                add(EffectName::Creep);
-            }
-            if c.dynamics.is_some() {
-                add(EffectName::Dynamics);
+        for e in crate::effect::effects() {
+            if e.in_structure(&view) && !out.contains(&e.name()) {
+                out.push(e.name());
             }
         }
     }
@@ -116,12 +109,12 @@ impl Model for Plant {
 
 impl Model for crate::graybox::FittedGreyBox {
     fn describe(&self) -> String {
-        if self.effects.is_empty() {
+        if self.config.effects.is_empty() {
             return "grey-box model (linear, no effects)".to_string();
         }
         format!(
             "grey-box model ({})",
-            self.effects
+            crate::graybox::FittedGreyBox::effects(self)
                 .iter()
                 .map(|e| e.as_str())
                 .collect::<Vec<_>>()
@@ -135,7 +128,7 @@ impl Model for crate::graybox::FittedGreyBox {
         self.outputs().to_vec()
     }
     fn effects(&self) -> Vec<EffectName> {
-        self.effects.clone()
+        crate::graybox::FittedGreyBox::effects(self)
     }
     fn predict(&self, rec: &IoRecord) -> Result<Vec<Vec<f64>>, ModelError> {
         self.simulate(rec)

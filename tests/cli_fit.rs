@@ -3,6 +3,7 @@
 //! nothing written).
 
 use hystbench::graybox::FittedGreyBox;
+use hystbench::plant::EffectSpecs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -117,7 +118,9 @@ fn fits_a_40k_sample_siso_record_at_1khz() {
     assert!(rmse < 0.02, "rmse {rmse}");
     assert!(full["r2"].as_f64().unwrap() > 0.9999);
     let m = FittedGreyBox::load(&dir.path().join("m.json")).unwrap();
-    let d = m.plant.spec.outputs[0].dynamics.unwrap();
+    let d = *m.plant.spec.outputs[0]
+        .get::<hystbench::effect::dynamics::DynamicsSpec>()
+        .unwrap();
     assert!((d.natural_frequency_hz - 80.0).abs() < 0.8, "{d:?}");
     let v = fit_json(
         &data,

@@ -88,7 +88,14 @@ fn check_case(
 }
 
 const LINEAR: &str = r#"{"linear":{"gain":0.8}}"#;
-use EffectName::*;
+#[allow(non_upper_case_globals)]
+const Hysteresis: EffectName = hystbench::effect::hysteresis::NAME;
+#[allow(non_upper_case_globals)]
+const Creep: EffectName = hystbench::effect::creep::NAME;
+#[allow(non_upper_case_globals)]
+const Dynamics: EffectName = hystbench::effect::dynamics::NAME;
+#[allow(non_upper_case_globals)]
+const Coupling: EffectName = hystbench::effect::coupling::NAME;
 
 #[test]
 fn missing_hysteresis_is_named() {

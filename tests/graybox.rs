@@ -7,6 +7,7 @@ use hystbench::effect::creep::CreepSpec;
 use hystbench::effect::dynamics::DynamicsSpec;
 use hystbench::effect::hysteresis::HysteresisSpec;
 use hystbench::graybox::{FittedGreyBox, GreyBoxConfig};
+use hystbench::plant::EffectSpecs;
 use hystbench::plant::{Plant, PlantSpec};
 use hystbench::scenario::{Scenario, ScenarioSpec};
 use hystbench::simulator::simulate_scenario;
@@ -79,10 +80,10 @@ fn bouc_wen_dynamics_recovered() {
     let out = &m.plant.spec.outputs[0];
     eprintln!("{}", serde_json::to_string(out).unwrap());
     assert!(r2 >= 0.9999, "R^2 {r2}");
-    let HysteresisSpec::BoucWen(bw) = &out.paths[0].hysteresis else {
+    let HysteresisSpec::BoucWen(bw) = out.paths[0].get::<HysteresisSpec>().unwrap() else {
         panic!("not Bouc-Wen")
     };
-    let d = out.dynamics.unwrap();
+    let d = *out.get::<DynamicsSpec>().unwrap();
     for (name, got, want) in [
         ("d", bw.d, 0.8),
         ("A", bw.a, 0.3),
@@ -101,8 +102,8 @@ fn bouc_wen_dynamics_recovered() {
 fn creep_plant() -> Plant {
     plant_edited("creep_piezo.json", |s| {
         let o = &mut s.outputs[0];
-        o.creep = Some(CreepSpec::from_log_rate(2.0, vec![0.1, 1.0, 10.0]));
-        o.dynamics = Some(DynamicsSpec {
+        o.set(CreepSpec::from_log_rate(2.0, vec![0.1, 1.0, 10.0]));
+        o.set(DynamicsSpec {
             natural_frequency_hz: 120.0,
             damping_ratio: 0.05,
             dc_gain: 1.0,
@@ -135,10 +136,10 @@ fn bouc_wen_creep_dynamics_recovered() {
     assert!(r2 >= 0.9999, "R^2 {r2}");
     let out = &m.plant.spec.outputs[0];
     let truth = &p.spec.outputs[0];
-    let HysteresisSpec::BoucWen(bw) = &out.paths[0].hysteresis else {
+    let HysteresisSpec::BoucWen(bw) = out.paths[0].get::<HysteresisSpec>().unwrap() else {
         panic!("not Bouc-Wen")
     };
-    let d = out.dynamics.unwrap();
+    let d = *out.get::<DynamicsSpec>().unwrap();
     for (name, got, want) in [
         ("d", bw.d, 0.8),
         ("A", bw.a, 0.3),
@@ -148,8 +149,8 @@ fn bouc_wen_creep_dynamics_recovered() {
         ("zeta", d.damping_ratio, 0.05),
         (
             "creep %/decade",
-            creep_rate(out.creep.as_ref().unwrap()),
-            creep_rate(truth.creep.as_ref().unwrap()),
+            creep_rate(out.get::<CreepSpec>().unwrap()),
+            creep_rate(truth.get::<CreepSpec>().unwrap()),
         ),
     ] {
         eprintln!("{name}: {got} vs {want} ({:.4} %)", 100.0 * rel(got, want));
@@ -165,7 +166,7 @@ fn prandtl_ishlinskii_dynamics_recovered() {
         let m = fit(&rec, effects);
         let r2 = m.fit.r2.unwrap();
         assert!(r2 >= 0.9999, "{effects}: R^2 {r2}");
-        let d = m.plant.spec.outputs[0].dynamics.unwrap();
+        let d = *m.plant.spec.outputs[0].get::<DynamicsSpec>().unwrap();
         assert!(rel(d.natural_frequency_hz, 800.0) < 0.02, "{d:?}");
         assert!(rel(d.damping_ratio, 0.03) < 0.02, "{d:?}");
     }
@@ -191,9 +192,10 @@ fn coupled_bouc_wen_recovered() {
         let r2 = m.fit.outputs[o].r2.unwrap();
         assert!(r2 >= 0.9999, "output {o}: R^2 {r2}");
         for (k, (gp, wp)) in got.paths.iter().zip(&want.paths).enumerate() {
-            let (HysteresisSpec::BoucWen(g), HysteresisSpec::BoucWen(w)) =
-                (&gp.hysteresis, &wp.hysteresis)
-            else {
+            let (HysteresisSpec::BoucWen(g), HysteresisSpec::BoucWen(w)) = (
+                gp.get::<HysteresisSpec>().unwrap(),
+                wp.get::<HysteresisSpec>().unwrap(),
+            ) else {
                 panic!("output {o} path {k}: not Bouc-Wen")
             };
             for (name, a, b) in [
@@ -206,7 +208,10 @@ fn coupled_bouc_wen_recovered() {
                 assert!(rel(a, b) < 0.02, "output {o} path {k} {name}: {a} vs {b}");
             }
         }
-        let (g, w) = (got.dynamics.unwrap(), want.dynamics.unwrap());
+        let (g, w) = (
+            *got.get::<DynamicsSpec>().unwrap(),
+            *want.get::<DynamicsSpec>().unwrap(),
+        );
         assert!(rel(g.natural_frequency_hz, w.natural_frequency_hz) < 0.02);
         assert!(rel(g.damping_ratio, w.damping_ratio) < 0.02);
     }
@@ -266,7 +271,7 @@ fn unconverged_fit_is_reported_and_kept() {
         .unwrap();
     let more = lin
         .config()
-        .with_effect(hystbench::effect::EffectName::Hysteresis)
+        .with_effect(hystbench::effect::hysteresis::NAME)
         .fit(&rec)
         .unwrap();
     assert_eq!(more.config().effect_list(), "hysteresis,dynamics");

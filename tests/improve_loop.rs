@@ -50,7 +50,7 @@ fn fit_and_diagnose(
         .map(|(y, p)| hystbench::metrics::rmse(&y.values, p))
         .sum::<f64>()
         / pred.len() as f64;
-    let d = diagnose(rec, &pred, &m.effects, &DiagnoseOptions::default());
+    let d = diagnose(rec, &pred, &m.effects(), &DiagnoseOptions::default());
     println!(
         "{effects}: rmse {rmse:.4}, ranking {:?}, missing {:?}",
         d.ranking
@@ -80,7 +80,7 @@ fn missing_creep_is_found_and_added() {
         &rec,
         "hysteresis,dynamics",
         "hysteresis,creep,dynamics",
-        EffectName::Creep,
+        hystbench::effect::creep::NAME,
     );
 }
 
@@ -91,7 +91,7 @@ fn missing_hysteresis_is_found_and_added() {
         &rec,
         "creep,dynamics",
         "hysteresis,creep,dynamics",
-        EffectName::Hysteresis,
+        hystbench::effect::hysteresis::NAME,
     );
 }
 
@@ -102,7 +102,7 @@ fn missing_dynamics_is_found_and_added() {
         &rec,
         "hysteresis,creep",
         "hysteresis,creep,dynamics",
-        EffectName::Dynamics,
+        hystbench::effect::dynamics::NAME,
     );
 }
 
@@ -134,7 +134,7 @@ fn missing_coupling_is_found_and_added_and_complete_mimo_is_clean() {
         &rec,
         "bouc-wen,dynamics",
         "bouc-wen,dynamics,coupling",
-        EffectName::Coupling,
+        hystbench::effect::coupling::NAME,
     );
     for noise in [0.01, 0.1] {
         let rec = record(MIMO, SCENARIO2, noise);

@@ -7,9 +7,9 @@ use hystbench::benchmark::mr_damper::{self, MrDamperError, Structure};
 use hystbench::data::IoRecord;
 use hystbench::diagnose::{diagnose, DiagnoseOptions};
 use hystbench::effect::hysteresis::HysteresisSpec;
-use hystbench::effect::EffectName;
 use hystbench::graybox::GreyBoxConfig;
 use hystbench::narx::{Interaction, Lags, Mode, NarxConfig};
+use hystbench::plant::EffectSpecs;
 use hystbench::plant::{Plant, PlantSpec};
 use hystbench::scenario::ScenarioSpec;
 use hystbench::simulator::simulate_scenario;
@@ -230,12 +230,12 @@ fn missing_viscous_is_named() {
         let d = diagnose(
             &rec,
             &without,
-            &[EffectName::Hysteresis],
+            &[hystbench::effect::hysteresis::NAME],
             &DiagnoseOptions::default(),
         );
         assert_eq!(
             d.missing,
-            Some(EffectName::Viscous),
+            Some(hystbench::effect::viscous::NAME),
             "noise {noise}: {:?}",
             d.ranking
         );
@@ -243,7 +243,10 @@ fn missing_viscous_is_named() {
         let d = diagnose(
             &rec,
             &with,
-            &[EffectName::Hysteresis, EffectName::Viscous],
+            &[
+                hystbench::effect::hysteresis::NAME,
+                hystbench::effect::viscous::NAME,
+            ],
             &DiagnoseOptions::default(),
         );
         assert_eq!(d.missing, None, "noise {noise}: {:?}", d.ranking);
@@ -260,9 +263,15 @@ fn viscous_coefficient_is_recovered() {
     let r2 = m.fit.r2.unwrap();
     assert!(r2 > 0.99999, "r2 {r2}");
     let path = &m.plant.spec.outputs[0].paths[0];
-    let c = path.viscous.unwrap().coefficient;
+    let c = path
+        .get::<hystbench::effect::viscous::ViscousSpec>()
+        .unwrap()
+        .coefficient;
     assert!((c - 0.02).abs() < 2e-4, "coefficient {c}");
-    assert!(matches!(path.hysteresis, HysteresisSpec::BoucWen(_)));
+    assert!(matches!(
+        path.get::<HysteresisSpec>().unwrap(),
+        HysteresisSpec::BoucWen(_)
+    ));
     // without the effect the fit is clearly worse
     let m0 = GreyBoxConfig::from_effect_list("bouc-wen")
         .unwrap()

@@ -6,8 +6,8 @@
 //! `cargo test --release --test narx -- --ignored`.
 
 use hystbench::data::{IoRecord, Signal};
-use hystbench::effect::basis::feature_specs;
-use hystbench::effect::EffectName;
+use hystbench::effect::hysteresis::HysteresisEffect;
+use hystbench::effect::Effect;
 use hystbench::narx::synthetic::{seed_1dof, seed_2dof, Plant1};
 use hystbench::narx::{FittedNarx, Interaction, Mode, NarxConfig, NarxError, Protocol};
 use std::process::Command;
@@ -80,7 +80,7 @@ fn hysteresis_features_improve_prandtl_ishlinskii_and_are_recomputed_on_another_
     let mut cfg = config(&train);
     cfg.robust.try_features.clear();
     let u: Vec<&[f64]> = train.inputs.iter().map(|s| &s.values[..]).collect();
-    cfg.features = feature_specs(EffectName::Hysteresis, &u, train.ts);
+    cfg.features = HysteresisEffect.features(&u, train.ts);
     assert_eq!(cfg.features.len(), 8);
     let m = cfg.fit(&train).unwrap();
     let with = m.evaluate(&train, &test).unwrap()[0]

@@ -50,7 +50,7 @@ pub struct Args {
 /// The `--json` summary: mean RMSE and R^2 over outputs, and each output for several.
 pub fn summary_json(model: &FittedGreyBox) -> Value {
     let mut v = json!({
-        "effects": model.effects.iter().map(|e| e.as_str()).collect::<Vec<_>>(),
+        "effects": model.effects().iter().map(|e| e.as_str()).collect::<Vec<_>>(),
         "rmse": model.fit.rmse,
         "r2": model.fit.r2,
     });

@@ -2,8 +2,8 @@
 //! the training and test parts, and write the model file.
 
 use crate::data::{check_writable, read_csv, write_atomic, IoRecord};
-use crate::effect::basis::{self, FeatureSpec};
 use crate::effect::EffectName;
+use crate::effect::FeatureSpec;
 use crate::narx::model::OutputEvaluation;
 use crate::narx::{FittedNarx, Interaction, Lags, NarxConfig, OptimizerKind, Protocol};
 use anyhow::Context;
@@ -244,16 +244,14 @@ pub fn feature_specs(names: &[String], train: &IoRecord) -> anyhow::Result<Vec<F
     let inputs: Vec<&[f64]> = train.inputs.iter().map(|s| &s.values[..]).collect();
     let mut specs = Vec::new();
     for e in effects {
-        let f = basis::feature_specs(e, &inputs, train.ts);
+        let Some(effect) = crate::effect::registry::effect(e) else {
+            continue;
+        };
+        let f = effect.features(&inputs, train.ts);
         if f.is_empty() {
             anyhow::bail!(
                 "--features {e}: no basis signals for this record ({})",
-                match e {
-                    EffectName::Coupling => "coupling needs at least two inputs",
-                    EffectName::Creep =>
-                        "the record is too short for creep time constants of 20 samples or more",
-                    _ => "too few samples",
-                }
+                effect.no_features()
             );
         }
         specs.extend(f);

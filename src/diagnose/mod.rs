@@ -26,9 +26,10 @@ pub mod regression;
 pub mod whiteness;
 
 use crate::data::IoRecord;
-use crate::effect::basis::{basis_bank, BasisContext};
-use crate::effect::EffectName;
-use crate::metrics::{branch_gap, rms};
+use crate::effect::basis::{BasisContext, EvidenceContext};
+use crate::effect::{registry, EffectName};
+pub use crate::metrics::holds;
+use crate::metrics::rms;
 use serde::Serialize;
 pub use whiteness::{whiteness, Whiteness};
 
@@ -134,16 +135,16 @@ pub fn diagnose(
     let mut outputs = Vec::new();
     for (o, (y, yhat)) in rec.outputs.iter().zip(predictions).enumerate() {
         let e: Vec<f64> = y.values.iter().zip(yhat).map(|(a, b)| a - b).collect();
-        let direct = o.min(inputs.len() - 1);
+        let direct = o.min(inputs.len().saturating_sub(1));
         let ctx = BasisContext {
             inputs: &inputs,
             direct,
             prediction: yhat,
             ts: rec.ts,
         };
-        let banks: Vec<_> = EffectName::ALL
+        let banks: Vec<_> = registry::effects()
             .into_iter()
-            .filter_map(|effect| basis_bank(effect, &ctx))
+            .filter_map(|effect| effect.basis(&ctx))
             .filter(|b| !b.signals.is_empty())
             .collect();
         // the baseline: the prediction and the banks of the effects the model has, so that a
@@ -253,7 +254,7 @@ pub fn diagnose(
     }
     // pool over outputs
     let mut ranking = Vec::new();
-    for effect in EffectName::ALL {
+    for effect in registry::effects().into_iter().map(|e| e.name()) {
         if model_effects.contains(&effect) {
             continue;
         }
@@ -339,7 +340,7 @@ pub fn diagnose(
     }
 }
 
-/// One sentence about what an effect would change, with its evidence.
+/// One sentence about what an effect would change, with its evidence (the effect's own).
 fn describe(
     rec: &IoRecord,
     o: usize,
@@ -348,7 +349,6 @@ fn describe(
     s: &EffectScore,
     unit: &str,
 ) -> String {
-    let u = &rec.inputs[direct].values;
     let unit = if unit.is_empty() {
         String::new()
     } else {
@@ -369,94 +369,17 @@ fn describe(
             100.0 * s.explained
         )
     };
-    let evidence = match s.effect {
-        EffectName::Hysteresis => format!(
-            "the error forms a loop against {} (branch gap {:.1} % of the error's range)",
-            rec.inputs[direct].name,
-            100.0 * branch_gap(u, e, 20)
-        ),
-        EffectName::Creep => match creep_drift(u, e, rec.ts) {
-            Some((slope, holds)) => format!(
-                "after each step the error drifts by {:.3}{unit} per decade of time ({holds} holds)",
-                slope.abs()
-            ),
-            None => "the error follows slow first-order trends of the output (no holds in the record to measure the drift per decade)".to_string(),
-        },
-        EffectName::Dynamics => "the error follows the recent past of the output: a fast linear dynamics (a mode, a lag) is not in the model".to_string(),
-        EffectName::Viscous => format!(
-            "the error follows the rate of {} (correlation {:.2}): a force in d{}/dt (viscous damping) is not in the model",
-            rec.inputs[direct].name,
-            correlation(&crate::effect::viscous::rate(u, rec.ts), e),
-            rec.inputs[direct].name
-        ),
-        EffectName::Coupling => {
-            let best = rec
-                .inputs
-                .iter()
-                .enumerate()
-                .filter(|(j, _)| *j != direct)
-                .map(|(_, s)| (s.name.clone(), correlation(&s.values, e).abs()))
-                .fold((String::new(), 0.0), |m, x| if x.1 > m.1 { x } else { m });
-            format!("the error of {} follows {} (correlation {:.2})", rec.outputs[o].name, best.0, best.1)
-        }
+    let names: Vec<&str> = rec.inputs.iter().map(|x| x.name.as_str()).collect();
+    let inputs: Vec<&[f64]> = rec.inputs.iter().map(|x| x.values.as_slice()).collect();
+    let ctx = EvidenceContext {
+        input_names: &names,
+        inputs: &inputs,
+        direct,
+        output: &rec.outputs[o].name,
+        error: e,
+        ts: rec.ts,
+        unit: &unit,
     };
+    let evidence = registry::effect(s.effect).map_or_else(String::new, |x| x.evidence(&ctx));
     format!("{}: {evidence}; {change}", s.effect)
-}
-
-fn correlation(a: &[f64], b: &[f64]) -> f64 {
-    let (ma, mb) = (crate::metrics::mean(a), crate::metrics::mean(b));
-    let (mut s, mut sa, mut sb) = (0.0, 0.0, 0.0);
-    for (x, y) in a.iter().zip(b) {
-        s += (x - ma) * (y - mb);
-        sa += (x - ma) * (x - ma);
-        sb += (y - mb) * (y - mb);
-    }
-    if sa > 0.0 && sb > 0.0 {
-        s / (sa * sb).sqrt()
-    } else {
-        0.0
-    }
-}
-
-/// Holds of the input: (start, end) index ranges where it stays within 0.1 % of its range for
-/// at least 0.5 s and 50 samples.
-pub fn holds(u: &[f64], ts: f64) -> Vec<(usize, usize)> {
-    let tol = 1e-3 * crate::metrics::ptp(u).max(f64::MIN_POSITIVE);
-    let min_len = ((0.5 / ts) as usize).max(50);
-    let mut out = Vec::new();
-    let mut start = 0;
-    for k in 1..=u.len() {
-        if k == u.len() || (u[k] - u[start]).abs() > tol {
-            if k - start >= min_len {
-                out.push((start, k));
-            }
-            start = k;
-        }
-    }
-    out
-}
-
-/// Mean slope of the error against log10(time since the step) over the holds, and their count.
-pub fn creep_drift(u: &[f64], e: &[f64], ts: f64) -> Option<(f64, usize)> {
-    let hs = holds(u, ts);
-    let mut slopes = Vec::new();
-    for &(a, b) in &hs {
-        // skip the first 5 % (dynamics settling) and 10 samples at least
-        let skip = ((b - a) / 20).max(10);
-        let (x, y): (Vec<f64>, Vec<f64>) = (a + skip..b)
-            .map(|k| (((k - a) as f64 * ts).log10(), e[k]))
-            .unzip();
-        if x.len() < 10 {
-            continue;
-        }
-        let c = regression::fit(&[&x], &y, 0..x.len(), true)?;
-        slopes.push(c[0]);
-    }
-    if slopes.is_empty() {
-        return None;
-    }
-    Some((
-        slopes.iter().map(|s| s.abs()).sum::<f64>() / slopes.len() as f64,
-        slopes.len(),
-    ))
 }

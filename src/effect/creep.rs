@@ -13,8 +13,15 @@
 //! - M. Rakotondrabe, C. Clevy, P. Lutz, IEEE T-ASE 7(3):440-450, 2010.
 //! - Physik Instrumente, "Piezo tutorial: creep" (1-2 % per decade).
 
-use super::{finite, positive, EffectError, Operator};
+use super::basis::{BasisBank, BasisContext, EvidenceContext};
+use super::feature::{FeatureKind, FeatureSpec};
+use super::fitting::{FilterFit, OutputSetup, Prepared, RecordError, RecordView};
+use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
+use super::{finite, positive, Effect, EffectError, EffectName, Operator, Slot};
 use serde::{Deserialize, Serialize};
+
+/// The effect's name.
+pub const NAME: EffectName = EffectName::new("creep");
 
 /// Creep parameters as written in a plant file: the time constants and either the gains or a
 /// logarithmic creep rate.
@@ -186,8 +193,8 @@ pub fn kelvin_voigt_state(x: &[f64], tau: f64, ts: f64) -> Vec<f64> {
 
 /// Basis bank: slow first-order states of the model's prediction, time constants one per half
 /// decade from 20 samples (at least 0.05 s) up to a third of the record.
-pub fn basis(ctx: &super::basis::BasisContext) -> super::basis::BasisBank {
-    let mut bank = super::basis::BasisBank::new(super::EffectName::Creep);
+pub fn basis(ctx: &BasisContext) -> BasisBank {
+    let mut bank = BasisBank::new(NAME);
     let span = ctx.len() as f64 * ctx.ts;
     let mut tau = (20.0 * ctx.ts).max(0.05);
     while tau <= span / 3.0 {
@@ -198,6 +205,249 @@ pub fn basis(ctx: &super::basis::BasisContext) -> super::basis::BasisBank {
         tau *= 10f64.sqrt();
     }
     bank
+}
+
+impl Spec for CreepSpec {
+    const EFFECT: EffectName = NAME;
+    type Params = Creep;
+    fn check(&self) -> Result<Creep, EffectError> {
+        CreepSpec::check(self)
+    }
+}
+
+impl Params for Creep {
+    const EFFECT: EffectName = NAME;
+    fn operator(&self, ts: f64) -> Result<BoxedOperator, EffectError> {
+        Ok(Box::new(Creep::operator(self, ts)))
+    }
+}
+
+/// The NARX feature: a first-order (Kelvin-Voigt) state of an input, starting at the input's
+/// first value (the creep bank's filter).
+pub static FIRST_ORDER: FeatureKind = FeatureKind {
+    name: "first_order",
+    params: &["tau_s"],
+    valid: |p| p[0].is_finite() && p[0] > 0.0,
+    label: |n, p| format!("first_order({n}, tau={:.4} s)", p[0]),
+    compute: |u, p, ts| kelvin_voigt_state(u, p[0], ts),
+};
+
+/// Creep time constants for the grey-box model: one per decade (powers of ten) from about 5
+/// samples to about a third of the record. `Err(needed samples)` when fewer than three (two
+/// decades) fit.
+pub fn creep_time_constants(samples: usize, ts: f64) -> Result<Vec<f64>, usize> {
+    let k_min = (5.0 * ts).log10().ceil() as i32;
+    let span = samples as f64 * ts / 3.0;
+    // the largest power of ten up to about twice a third of the record
+    let k_max = (span.log10() + 0.3).floor() as i32;
+    if k_max < k_min + 2 {
+        let needed = (3.0 * 10f64.powf(k_min as f64 + 1.7) / ts).ceil() as usize;
+        return Err(needed);
+    }
+    Ok((k_min..=k_max).map(|k| 10f64.powi(k)).collect())
+}
+
+/// The longest run of samples over which the signal stays within 1e-6 of its range.
+pub fn longest_hold(u: &[f64]) -> usize {
+    let tol = 1e-6 * crate::metrics::ptp(u);
+    let (mut best, mut run) = (0, 1);
+    for w in u.windows(2) {
+        if (w[1] - w[0]).abs() <= tol {
+            run += 1;
+        } else {
+            run = 1;
+        }
+        best = best.max(run);
+    }
+    best
+}
+
+/// Fraction of the (mean-removed) input variance that passes a first-order low-pass of time
+/// constant `tau`.
+pub fn slow_fraction(u: &[f64], ts: f64, tau: f64) -> f64 {
+    let m = crate::metrics::mean(u);
+    let a = (-ts / tau).exp();
+    let mut z = 0.0;
+    let (mut num, mut den) = (0.0, 0.0);
+    for &v in u {
+        let x = v - m;
+        z = a * z + (1.0 - a) * x;
+        num += z * z;
+        den += x * x;
+    }
+    if den > 0.0 {
+        num / den
+    } else {
+        0.0
+    }
+}
+
+/// Mean slope of the error against log10(time since the step) over the holds, and their count.
+pub fn creep_drift(u: &[f64], e: &[f64], ts: f64) -> Option<(f64, usize)> {
+    let hs = crate::metrics::holds(u, ts);
+    let mut slopes = Vec::new();
+    for &(a, b) in &hs {
+        // skip the first 5 % (dynamics settling) and 10 samples at least
+        let skip = ((b - a) / 20).max(10);
+        let (x, y): (Vec<f64>, Vec<f64>) = (a + skip..b)
+            .map(|k| (((k - a) as f64 * ts).log10(), e[k]))
+            .unzip();
+        if x.len() < 10 {
+            continue;
+        }
+        let c = crate::numeric::ridge::fit(&[&x], &y, 0..x.len(), true)?;
+        slopes.push(c[0]);
+    }
+    if slopes.is_empty() {
+        return None;
+    }
+    Some((
+        slopes.iter().map(|s| s.abs()).sum::<f64>() / slopes.len() as f64,
+        slopes.len(),
+    ))
+}
+
+/// The grey-box filter: a Kelvin-Voigt chain with fixed time constants, gains free (held at 0
+/// in the first stage so that the fast dynamics settle first).
+struct CreepFilter {
+    taus: Vec<f64>,
+    ts: f64,
+}
+
+impl FilterFit for CreepFilter {
+    fn n_params(&self) -> usize {
+        self.taus.len()
+    }
+    fn initial(&self) -> Vec<f64> {
+        vec![0.0; self.taus.len()]
+    }
+    fn held_first(&self) -> bool {
+        true
+    }
+    fn prepare(&self, th: &[f64]) -> Prepared {
+        if th.iter().all(|g| *g == 0.0) {
+            return Prepared::Identity;
+        }
+        let a: Vec<f64> = self.taus.iter().map(|t| (-self.ts / t).exp()).collect();
+        let g = th.to_vec();
+        Prepared::Apply(Box::new(move |out: &mut [f64]| {
+            let mut z = vec![0.0; a.len()];
+            for v in out.iter_mut() {
+                let w = *v;
+                let mut o = w;
+                for ((zi, &ai), &gi) in z.iter_mut().zip(&a).zip(&g) {
+                    o += gi * *zi;
+                    *zi = ai * *zi + (1.0 - ai) * w;
+                }
+                *v = o;
+            }
+        }))
+    }
+    fn derivative(&self, _th: &[f64], x: &[f64], q: usize) -> Vec<f64> {
+        let one = Creep {
+            time_constants_s: vec![self.taus[q]],
+            gains: vec![1.0],
+        };
+        one.operator(self.ts)
+            .apply(x)
+            .iter()
+            .zip(x)
+            .map(|(a, b)| a - b)
+            .collect()
+    }
+    fn spec(&self, th: &[f64]) -> Box<dyn EffectSpec> {
+        Box::new(CreepSpec {
+            time_constants_s: self.taus.clone(),
+            gains: Some(th.to_vec()),
+            percent_per_decade: None,
+        })
+    }
+}
+
+/// Creep as an effect of the library.
+pub struct CreepEffect;
+
+impl Effect for CreepEffect {
+    fn name(&self) -> EffectName {
+        NAME
+    }
+    fn summary(&self) -> &'static str {
+        "slow drift after each move: a Kelvin-Voigt chain on the output (logarithmic creep)"
+    }
+    fn slot(&self) -> Slot {
+        Slot::OutputFilter
+    }
+    fn parse_spec(
+        &self,
+        d: &mut dyn erased_serde::Deserializer<'_>,
+    ) -> Result<Box<dyn EffectSpec>, erased_serde::Error> {
+        parse_spec::<CreepSpec>(d)
+    }
+    fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
+        Some(basis(ctx))
+    }
+    fn evidence(&self, ctx: &EvidenceContext) -> String {
+        match creep_drift(ctx.inputs[ctx.direct], ctx.error, ctx.ts) {
+            Some((slope, holds)) => format!(
+                "after each step the error drifts by {:.3}{} per decade of time ({holds} holds)",
+                slope.abs(),
+                ctx.unit
+            ),
+            None => "the error follows slow first-order trends of the output (no holds in the record to measure the drift per decade)".to_string(),
+        }
+    }
+    fn feature_kinds(&self) -> &'static [FeatureKind] {
+        std::slice::from_ref(&FIRST_ORDER)
+    }
+    /// For each input, first-order states with the creep bank's time constants (one per half
+    /// decade from 20 samples, at least 0.05 s, up to a third of the record).
+    fn features(&self, inputs: &[&[f64]], ts: f64) -> Vec<FeatureSpec> {
+        let n = inputs.first().map_or(0, |u| u.len());
+        let span = n as f64 * ts;
+        let mut out = Vec::new();
+        for j in 0..inputs.len() {
+            let mut tau = (20.0 * ts).max(0.05);
+            while tau <= span / 3.0 {
+                out.push(FeatureSpec::new(&FIRST_ORDER, j, vec![tau]));
+                tau *= 10f64.sqrt();
+            }
+        }
+        out
+    }
+    fn no_features(&self) -> &'static str {
+        "the record is too short for creep time constants of 20 samples or more"
+    }
+    fn filter(&self, setup: &OutputSetup) -> Option<Box<dyn FilterFit>> {
+        let taus = creep_time_constants(setup.samples, setup.ts).ok()?;
+        Some(Box::new(CreepFilter { taus, ts: setup.ts }))
+    }
+    fn check_record(&self, rec: &RecordView, _variant: usize) -> Result<(), RecordError> {
+        let (n, ts) = (rec.samples, rec.ts);
+        let taus = creep_time_constants(n, ts).map_err(|needed| RecordError::TooShort {
+            needed,
+            why: format!(
+                "creep needs time constants over at least two decades between 5 samples ({:.3e} s) and a third of the record ({:.3e} s); record longer holds",
+                5.0 * ts,
+                n as f64 * ts / 3.0
+            ),
+        })?;
+        let tau_mid = (taus[0] * taus[taus.len() - 1]).sqrt();
+        for (name, u) in rec.input_names.iter().zip(rec.inputs) {
+            let hold = longest_hold(u) as f64 * ts;
+            let slow = slow_fraction(u, ts, tau_mid);
+            if hold < tau_mid && slow < 0.01 {
+                return Err(RecordError::PoorlyExcited {
+                    input: name.to_string(),
+                    why: format!(
+                        "creep needs holds (the input held for {tau_mid:.3} s or more) or slow content (below {:.3} Hz); the longest hold is {hold:.3} s and the slow content carries {:.2} % of the input variance",
+                        1.0 / (2.0 * std::f64::consts::PI * tau_mid),
+                        100.0 * slow
+                    ),
+                });
+            }
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]

@@ -10,9 +10,20 @@
 //! - C. Moler, C. Van Loan, "Nineteen dubious ways to compute the exponential of a matrix,
 //!   twenty-five years later", SIAM Review 45(1):3-49, 2003 (scaling and squaring).
 
-use super::{non_negative, positive, EffectError, Operator};
+use super::basis::{BasisBank, BasisContext, EvidenceContext};
+use super::feature::{FeatureKind, FeatureSpec};
+use super::fitting::{log_bounded, log_bounded_inv, FilterFit, OutputSetup, Prepared, FD_STEP};
+use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
+use super::{non_negative, positive, Effect, EffectError, EffectName, Operator, Slot};
 use nalgebra::{Matrix2, Matrix3, Vector2};
 use serde::{Deserialize, Serialize};
+
+/// The effect's name.
+pub const NAME: EffectName = EffectName::new("dynamics");
+
+/// Most resonators one input gets as NARX features (the dynamics bank's frequency ladder is
+/// thinned evenly to this many).
+pub const MAX_RESONATOR_FEATURES: usize = 6;
 
 fn one() -> f64 {
     1.0
@@ -155,8 +166,8 @@ impl Operator for DynamicsOp {
 /// damping 0.1; each with its one-sample delay, which spans the filter's two states), and a few
 /// short delays of the prediction (first-order lags, delays): a missing mode or lag acting on
 /// the prediction is a combination of them.
-pub fn basis(ctx: &super::basis::BasisContext) -> super::basis::BasisBank {
-    let mut bank = super::basis::BasisBank::new(super::EffectName::Dynamics);
+pub fn basis(ctx: &BasisContext) -> BasisBank {
+    let mut bank = BasisBank::new(NAME);
     let y = ctx.prediction;
     let n = y.len();
     for lag in [1usize, 2, 3, 5] {
@@ -189,6 +200,250 @@ pub fn basis(ctx: &super::basis::BasisContext) -> super::basis::BasisBank {
         f *= 1.3;
     }
     bank
+}
+
+impl Spec for DynamicsSpec {
+    const EFFECT: EffectName = NAME;
+    type Params = Dynamics;
+    fn check(&self) -> Result<Dynamics, EffectError> {
+        DynamicsSpec::check(self)
+    }
+}
+
+impl Params for Dynamics {
+    const EFFECT: EffectName = NAME;
+    fn operator(&self, ts: f64) -> Result<BoxedOperator, EffectError> {
+        Ok(Box::new(Dynamics::operator(self, ts)?))
+    }
+}
+
+/// A unit-gain second-order resonator on a signal, shifted by its first value so that a
+/// non-zero start does not ring; zeros when it cannot be discretised at `ts`.
+fn resonator(u: &[f64], hz: f64, zeta: f64, ts: f64) -> Vec<f64> {
+    let d = Dynamics {
+        natural_frequency_hz: hz,
+        damping_ratio: zeta,
+        dc_gain: 1.0,
+    };
+    let u0 = u.first().copied().unwrap_or(0.0);
+    let shifted: Vec<f64> = u.iter().map(|v| v - u0).collect();
+    match d.operator(ts) {
+        Ok(mut op) => op.apply(&shifted),
+        Err(_) => vec![0.0; u.len()],
+    }
+}
+
+/// The NARX feature: a unit-gain resonator on an input (the dynamics bank's filter).
+pub static RESONATOR: FeatureKind = FeatureKind {
+    name: "resonator",
+    params: &["hz", "zeta"],
+    valid: |p| p[0].is_finite() && p[0] > 0.0 && p[1].is_finite() && p[1] > 0.0,
+    label: |n, p| format!("resonator({n}, {:.2} Hz, zeta={})", p[0], p[1]),
+    compute: |u, p, ts| resonator(u, p[0], p[1], ts),
+};
+
+/// The second-order filter (one sample of delay) on a signal; NaN when `d` cannot be
+/// discretised at `ts`.
+fn filtered(d: &Dynamics, ts: f64, x: &[f64]) -> Vec<f64> {
+    match prepared(d, ts) {
+        Prepared::Apply(f) => {
+            let mut out = x.to_vec();
+            f(&mut out);
+            out
+        }
+        _ => vec![f64::NAN; x.len()],
+    }
+}
+
+fn prepared(d: &Dynamics, ts: f64) -> Prepared {
+    match d.discretise(ts) {
+        Ok((phi, gam)) => {
+            let p = [phi[(0, 0)], phi[(0, 1)], phi[(1, 0)], phi[(1, 1)]];
+            let gm = [gam[0], gam[1]];
+            Prepared::Apply(Box::new(move |out: &mut [f64]| {
+                let (mut x0, mut x1) = (0.0, 0.0);
+                for v in out.iter_mut() {
+                    let w = *v;
+                    *v = x0;
+                    let n0 = p[0] * x0 + p[1] * x1 + gm[0] * w;
+                    let n1 = p[2] * x0 + p[3] * x1 + gm[1] * w;
+                    x0 = n0;
+                    x1 = n1;
+                }
+            }))
+        }
+        Err(_) => Prepared::Invalid,
+    }
+}
+
+/// The grey-box filter: natural frequency in (fs / 1000, 0.49 fs) and damping in
+/// (0.002, 5), both on log scales; started from the best local minima of a grid.
+struct DynamicsFilter {
+    ts: f64,
+    f_bounds: (f64, f64),
+    z_bounds: (f64, f64),
+}
+
+impl DynamicsFilter {
+    fn dynamics(&self, th: &[f64]) -> Dynamics {
+        let (flo, fhi) = self.f_bounds;
+        let (zlo, zhi) = self.z_bounds;
+        Dynamics {
+            natural_frequency_hz: log_bounded(th[0], flo, fhi),
+            damping_ratio: log_bounded(th[1], zlo, zhi),
+            dc_gain: 1.0,
+        }
+    }
+
+    fn params_of(&self, f: f64, z: f64) -> Vec<f64> {
+        vec![
+            log_bounded_inv(f, self.f_bounds.0, self.f_bounds.1),
+            log_bounded_inv(z, self.z_bounds.0, self.z_bounds.1),
+        ]
+    }
+}
+
+impl FilterFit for DynamicsFilter {
+    fn n_params(&self) -> usize {
+        2
+    }
+    fn initial(&self) -> Vec<f64> {
+        self.params_of(0.1 / self.ts, 0.1)
+    }
+    fn off_when_static(&self) -> bool {
+        true
+    }
+    fn prepare(&self, th: &[f64]) -> Prepared {
+        prepared(&self.dynamics(th), self.ts)
+    }
+    fn derivative(&self, th: &[f64], x: &[f64], q: usize) -> Vec<f64> {
+        let d0 = self.dynamics(th);
+        let mut t2 = th.to_vec();
+        t2[q] += FD_STEP;
+        let d1 = self.dynamics(&t2);
+        let a = filtered(&d0, self.ts, x);
+        let b = filtered(&d1, self.ts, x);
+        b.iter().zip(&a).map(|(b, a)| (b - a) / FD_STEP).collect()
+    }
+    /// A grid of natural frequencies (x1.12 from twice the lower bound to 0.45 fs) and damping
+    /// ratios (0.02, 0.1, 0.4, 1): the best damping per frequency, then the `count` best local
+    /// minima along the frequency axis.
+    fn starts(
+        &self,
+        _th: &[f64],
+        cost: &dyn Fn(&[f64]) -> f64,
+        count: usize,
+    ) -> Option<Vec<Vec<f64>>> {
+        let (flo, fhi) = (2.0 * self.f_bounds.0, 0.45 / self.ts);
+        let steps = ((fhi / flo).ln() / 1.12f64.ln()).ceil() as usize;
+        let grid: Vec<(f64, f64)> = (0..=steps)
+            .flat_map(|i| {
+                let f = flo * (fhi / flo).powf(i as f64 / steps as f64);
+                [0.02, 0.1, 0.4, 1.0].map(|z| (f, z))
+            })
+            .collect();
+        let costs: Vec<f64> = grid
+            .iter()
+            .map(|&(f, z)| cost(&self.params_of(f, z)))
+            .collect();
+        let per_f: Vec<usize> = (0..=steps)
+            .map(|i| {
+                (4 * i..4 * i + 4)
+                    .min_by(|&a, &b| costs[a].total_cmp(&costs[b]))
+                    .unwrap_or(4 * i)
+            })
+            .collect();
+        let c = |i: usize| costs[per_f[i]];
+        let mut minima: Vec<usize> = (0..per_f.len())
+            .filter(|&i| (i == 0 || c(i) <= c(i - 1)) && (i + 1 == per_f.len() || c(i) <= c(i + 1)))
+            .map(|i| per_f[i])
+            .collect();
+        minima.sort_by(|&a, &b| costs[a].total_cmp(&costs[b]));
+        minima.truncate(count.max(1));
+        if minima.is_empty() {
+            minima.push(0);
+        }
+        Some(
+            minima
+                .into_iter()
+                .map(|best| self.params_of(grid[best].0, grid[best].1))
+                .collect(),
+        )
+    }
+    fn spec(&self, th: &[f64]) -> Box<dyn EffectSpec> {
+        let d = self.dynamics(th);
+        Box::new(DynamicsSpec {
+            natural_frequency_hz: d.natural_frequency_hz,
+            damping_ratio: d.damping_ratio,
+            dc_gain: 1.0,
+        })
+    }
+}
+
+/// Linear dynamics as an effect of the library.
+pub struct DynamicsEffect;
+
+impl Effect for DynamicsEffect {
+    fn name(&self) -> EffectName {
+        NAME
+    }
+    fn summary(&self) -> &'static str {
+        "a second-order mode (natural frequency, damping) on a path or an output"
+    }
+    fn slot(&self) -> Slot {
+        Slot::Filter
+    }
+    fn parse_spec(
+        &self,
+        d: &mut dyn erased_serde::Deserializer<'_>,
+    ) -> Result<Box<dyn EffectSpec>, erased_serde::Error> {
+        parse_spec::<DynamicsSpec>(d)
+    }
+    fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
+        Some(basis(ctx))
+    }
+    fn evidence(&self, _ctx: &EvidenceContext) -> String {
+        "the error follows the recent past of the output: a fast linear dynamics (a mode, a lag) is not in the model".to_string()
+    }
+    fn feature_kinds(&self) -> &'static [FeatureKind] {
+        std::slice::from_ref(&RESONATOR)
+    }
+    /// For each input, resonators (zeta 0.1) from the dynamics bank's ladder (50 / span ..
+    /// 0.35 / ts, x1.3), thinned to [`MAX_RESONATOR_FEATURES`].
+    fn features(&self, inputs: &[&[f64]], ts: f64) -> Vec<FeatureSpec> {
+        let n = inputs.first().map_or(0, |u| u.len());
+        let span = n as f64 * ts;
+        let mut out = Vec::new();
+        for j in 0..inputs.len() {
+            let mut fs = Vec::new();
+            let mut f = (50.0 / span).max(1.0);
+            while f <= 0.35 / ts {
+                fs.push(f);
+                f *= 1.3;
+            }
+            let m = fs.len().min(MAX_RESONATOR_FEATURES);
+            for i in 0..m {
+                let idx = if m > 1 {
+                    i * (fs.len() - 1) / (m - 1)
+                } else {
+                    0
+                };
+                out.push(FeatureSpec::new(&RESONATOR, j, vec![fs[idx], 0.1]));
+            }
+        }
+        out
+    }
+    fn filter(&self, setup: &OutputSetup) -> Option<Box<dyn FilterFit>> {
+        let fs = 1.0 / setup.ts;
+        Some(Box::new(DynamicsFilter {
+            ts: setup.ts,
+            f_bounds: (fs / 1000.0, 0.49 * fs),
+            z_bounds: (2e-3, 5.0),
+        }))
+    }
+    fn parameter_count(&self, _variant: usize, _plays: usize) -> (usize, usize) {
+        (0, 2)
+    }
 }
 
 #[cfg(test)]

@@ -5,10 +5,19 @@
 //! A plant file names the operator: `{"bouc_wen": {...}}`, `{"prandtl_ishlinskii": {...}}` or
 //! `{"linear": {"gain": 0.8}}`.
 
+use super::basis::{play_thresholds, BasisBank, BasisContext, EvidenceContext};
 use super::bouc_wen::{BoucWen, BoucWenOp, BoucWenSpec};
+use super::feature::{FeatureKind, FeatureSpec};
+use super::fitting::{
+    Column, PathSetup, RecordError, RecordView, TermFit, TermSpec, Variant, FD_STEP, LIMIT,
+};
+use super::play::{play_bank, play_operator};
 use super::prandtl_ishlinskii::{PrandtlIshlinskii, PrandtlIshlinskiiOp, PrandtlIshlinskiiSpec};
-use super::{finite, EffectError, Operator};
+use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
+use super::{finite, Effect, EffectError, EffectName, Operator, Slot};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
 
 /// A linear path: y = gain * u.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -101,12 +110,397 @@ impl Operator for HysteresisOp {
 }
 
 /// Basis bank: plays of the direct input at thresholds spread over its half range.
-pub fn basis(ctx: &super::basis::BasisContext) -> super::basis::BasisBank {
+pub fn basis(ctx: &BasisContext) -> BasisBank {
     let u = ctx.inputs[ctx.direct];
-    let mut bank = super::basis::BasisBank::new(super::EffectName::Hysteresis);
-    let th = super::basis::play_thresholds(u, 8);
-    for (r, z) in th.iter().zip(super::play::play_bank(u, &th)) {
+    let mut bank = BasisBank::new(NAME);
+    let th = play_thresholds(u, 8);
+    for (r, z) in th.iter().zip(play_bank(u, &th)) {
         bank.push(format!("play(u, r={r:.3})"), z);
     }
     bank
+}
+
+// ---------------------------------------------------------------------------------------------
+// The effect: plant files, diagnosis, NARX features, grey-box terms.
+
+/// The effect's name.
+pub const NAME: EffectName = EffectName::new("hysteresis");
+
+impl Spec for HysteresisSpec {
+    const EFFECT: EffectName = NAME;
+    type Params = Hysteresis;
+    fn check(&self) -> Result<Hysteresis, EffectError> {
+        HysteresisSpec::check(self)
+    }
+}
+
+impl Params for Hysteresis {
+    const EFFECT: EffectName = NAME;
+    fn operator(&self, _ts: f64) -> Result<BoxedOperator, EffectError> {
+        Ok(Box::new(Hysteresis::operator(self)))
+    }
+    fn is_active(&self) -> bool {
+        self.is_hysteretic()
+    }
+}
+
+/// The NARX feature: a play operator of an input, state 0 at the start.
+pub static PLAY: FeatureKind = FeatureKind {
+    name: "play",
+    params: &["threshold"],
+    valid: |p| p[0].is_finite() && p[0] >= 0.0,
+    label: |n, p| format!("play({n}, r={:.4})", p[0]),
+    compute: |u, p, _| play_bank(u, &[p[0]]).pop().unwrap_or_default(),
+};
+
+/// Thresholds spread over the input range: r_k = k R / (n + 1), k = 1..n, R = max |u|.
+pub fn pi_thresholds(u: &[f64], n: usize) -> Vec<f64> {
+    let r = u.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    (1..=n).map(|k| k as f64 * r / (n + 1) as f64).collect()
+}
+
+fn max_abs(u: &[f64]) -> f64 {
+    u.iter().fold(0.0f64, |a, v| a.max(v.abs())).max(1e-300)
+}
+
+fn plays_of(u: &[f64], thresholds: &[f64]) -> Vec<Vec<f64>> {
+    thresholds
+        .par_iter()
+        .map(|&r| {
+            let mut z = 0.0;
+            u.iter()
+                .map(|&v| {
+                    z = play_operator(v, r, z);
+                    z
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// -htilde for A = 1 (h is linear in A for fixed B and Gamma: the exact update scales with A).
+fn bouc_wen_column(u: &[f64], b: f64, gamma: f64) -> Vec<f64> {
+    let spec = BoucWenSpec {
+        d: 0.0,
+        a: 1.0,
+        b,
+        gamma,
+        n: 1.0,
+        initial_h: 0.0,
+    };
+    match spec.check() {
+        Ok(p) => p.operator().apply(u),
+        Err(_) => vec![f64::NAN; u.len()],
+    }
+}
+
+/// The grey-box Bouc-Wen term's parameters: B = exp(theta_0) / range, Gamma = B tanh(theta_1).
+fn bouc_wen_params(th: &[f64], range: f64) -> (f64, f64) {
+    let b = th[0].exp() / range;
+    (b, b * th[1].clamp(-LIMIT, LIMIT).tanh())
+}
+
+/// A Bouc-Wen term with n = 1 and d = 0 (the path's gain is d).
+fn bouc_wen_term_spec(a: f64, b: f64, gamma: f64, d: f64) -> HysteresisSpec {
+    HysteresisSpec::BoucWen(BoucWenSpec {
+        d,
+        a,
+        b,
+        gamma,
+        n: 1.0,
+        initial_h: 0.0,
+    })
+}
+
+/// d/d theta_q of a_coef * (Bouc-Wen column) by a forward difference.
+fn bouc_wen_derivative(
+    u: &[f64],
+    th: &[f64],
+    q: usize,
+    range: f64,
+    base: &[f64],
+    a_coef: f64,
+) -> Vec<f64> {
+    let mut t2 = th.to_vec();
+    t2[q] += FD_STEP;
+    let (b, g) = bouc_wen_params(&t2, range);
+    let c1 = bouc_wen_column(u, b, g);
+    c1.iter()
+        .zip(base.iter())
+        .map(|(x, y)| a_coef * (x - y) / FD_STEP)
+        .collect()
+}
+
+const BOUC_WEN_PARAMS: [&str; 2] = ["bouc_wen.log_b", "bouc_wen.gamma_ratio"];
+
+/// The static starting grid of a Bouc-Wen term: B range 0.1..10, Gamma / B -0.5..0.5.
+fn bouc_wen_grid() -> Vec<Vec<f64>> {
+    let mut g = Vec::new();
+    for br in [0.1f64, 0.3, 1.0, 3.0, 10.0] {
+        for ratio in [-0.5f64, 0.0, 0.5] {
+            g.push(vec![br.ln(), ratio.atanh()]);
+        }
+    }
+    g
+}
+
+/// Prandtl-Ishlinskii plays (weights >= 0, sharing the sign of the path's gain) and, for the
+/// default operator on a positive path, one Bouc-Wen column (A >= 0).
+struct PiTerm<'a> {
+    u: &'a [f64],
+    thresholds: Vec<f64>,
+    sign: f64,
+    plays: Vec<Vec<f64>>,
+    /// The Bouc-Wen column's input range, when there is one.
+    bw: Option<f64>,
+}
+
+impl TermFit for PiTerm<'_> {
+    fn n_columns(&self) -> usize {
+        self.plays.len() + usize::from(self.bw.is_some())
+    }
+    fn n_params(&self) -> usize {
+        if self.bw.is_some() {
+            2
+        } else {
+            0
+        }
+    }
+    fn param_names(&self) -> Vec<&'static str> {
+        if self.bw.is_some() {
+            BOUC_WEN_PARAMS.to_vec()
+        } else {
+            Vec::new()
+        }
+    }
+    fn start_grid(&self) -> Vec<Vec<f64>> {
+        if self.bw.is_some() {
+            bouc_wen_grid()
+        } else {
+            Vec::new()
+        }
+    }
+    fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>> {
+        let mut cols: Vec<Column<'s>> = Vec::with_capacity(self.plays.len() + 1);
+        for z in &self.plays {
+            if self.sign > 0.0 {
+                cols.push((Cow::Borrowed(z.as_slice()), true));
+            } else {
+                cols.push((Cow::Owned(z.iter().map(|v| -v).collect()), true));
+            }
+        }
+        if let Some(range) = self.bw {
+            let (b, g) = bouc_wen_params(th, range);
+            cols.push((Cow::Owned(bouc_wen_column(self.u, b, g)), true));
+        }
+        cols
+    }
+    fn derivative(&self, th: &[f64], q: usize, cols: &[&[f64]], coef: &[f64]) -> Vec<f64> {
+        let range = self.bw.unwrap_or(1.0);
+        let last = cols.len() - 1;
+        bouc_wen_derivative(self.u, th, q, range, cols[last], coef[last])
+    }
+    fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec {
+        let n = self.thresholds.len();
+        let spec = PrandtlIshlinskiiSpec {
+            linear_weight: gain,
+            thresholds: self.thresholds.clone(),
+            weights: coef[..n].iter().map(|w| self.sign * w).collect(),
+            initial_state: 0.0,
+            dead_zones: None,
+        };
+        let mut extra_paths: Vec<Box<dyn EffectSpec>> = Vec::new();
+        if let Some(range) = self.bw {
+            let a = coef[n];
+            if a > 0.0 {
+                let (b, g) = bouc_wen_params(th, range);
+                extra_paths.push(Box::new(bouc_wen_term_spec(a, b, g, 0.0)));
+            }
+        }
+        TermSpec {
+            spec: Some(Box::new(HysteresisSpec::PrandtlIshlinskii(spec))),
+            extra_paths,
+        }
+    }
+}
+
+/// Bouc-Wen (n = 1, Rakotondrabe 2011 form): y = d u - A htilde, A >= 0.
+struct BoucWenTerm<'a> {
+    u: &'a [f64],
+    range: f64,
+}
+
+impl TermFit for BoucWenTerm<'_> {
+    fn n_columns(&self) -> usize {
+        1
+    }
+    fn n_params(&self) -> usize {
+        2
+    }
+    fn param_names(&self) -> Vec<&'static str> {
+        BOUC_WEN_PARAMS.to_vec()
+    }
+    fn start_grid(&self) -> Vec<Vec<f64>> {
+        bouc_wen_grid()
+    }
+    fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>> {
+        let (b, g) = bouc_wen_params(th, self.range);
+        vec![(Cow::Owned(bouc_wen_column(self.u, b, g)), true)]
+    }
+    fn derivative(&self, th: &[f64], q: usize, cols: &[&[f64]], coef: &[f64]) -> Vec<f64> {
+        bouc_wen_derivative(self.u, th, q, self.range, cols[0], coef[0])
+    }
+    fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec {
+        let (b, g) = bouc_wen_params(th, self.range);
+        let a = coef[0];
+        let spec = if a > 0.0 {
+            bouc_wen_term_spec(a, b, g, gain)
+        } else {
+            HysteresisSpec::Linear(LinearSpec { gain })
+        };
+        TermSpec {
+            spec: Some(Box::new(spec)),
+            extra_paths: Vec::new(),
+        }
+    }
+}
+
+/// The grey-box operators: the default combines a Prandtl-Ishlinskii operator with one
+/// Bouc-Wen term on the same input (two paths in the plant file), exact for either kind of
+/// plant (the PI part alone cannot follow Bouc-Wen loops closer than about 0.3 % of the range);
+/// it also starts from the Bouc-Wen fit so that it is never worse than `bouc-wen`.
+pub const VARIANTS: [Variant; 3] = [
+    Variant {
+        name: "hysteresis",
+        file: "prandtl-ishlinskii+bouc-wen",
+        warm_start: Some(2),
+    },
+    Variant {
+        name: "prandtl-ishlinskii",
+        file: "prandtl-ishlinskii",
+        warm_start: None,
+    },
+    Variant {
+        name: "bouc-wen",
+        file: "bouc-wen",
+        warm_start: None,
+    },
+];
+
+/// Hysteresis as an effect of the library.
+pub struct HysteresisEffect;
+
+impl Effect for HysteresisEffect {
+    fn name(&self) -> EffectName {
+        NAME
+    }
+    fn summary(&self) -> &'static str {
+        "rate-independent loops: Prandtl-Ishlinskii, Bouc-Wen (or a linear gain without it)"
+    }
+    fn slot(&self) -> Slot {
+        Slot::PathTerm
+    }
+    fn required_in_path(&self) -> bool {
+        true
+    }
+    fn parse_spec(
+        &self,
+        d: &mut dyn erased_serde::Deserializer<'_>,
+    ) -> Result<Box<dyn EffectSpec>, erased_serde::Error> {
+        parse_spec::<HysteresisSpec>(d)
+    }
+    fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
+        Some(basis(ctx))
+    }
+    fn evidence(&self, ctx: &EvidenceContext) -> String {
+        format!(
+            "the error forms a loop against {} (branch gap {:.1} % of the error's range)",
+            ctx.input_names[ctx.direct],
+            100.0 * crate::metrics::branch_gap(ctx.inputs[ctx.direct], ctx.error, 20)
+        )
+    }
+    fn feature_kinds(&self) -> &'static [FeatureKind] {
+        std::slice::from_ref(&PLAY)
+    }
+    /// For each input, 8 plays with thresholds spread over its half range.
+    fn features(&self, inputs: &[&[f64]], _ts: f64) -> Vec<FeatureSpec> {
+        let mut out = Vec::new();
+        for (j, u) in inputs.iter().enumerate() {
+            for r in play_thresholds(u, 8) {
+                out.push(FeatureSpec::new(&PLAY, j, vec![r]));
+            }
+        }
+        out
+    }
+    fn narx_candidate(&self) -> bool {
+        true
+    }
+    fn variants(&self) -> &'static [Variant] {
+        &VARIANTS
+    }
+    fn term<'a>(&self, setup: &PathSetup<'a>) -> Option<Box<dyn TermFit + 'a>> {
+        let u = setup.u;
+        Some(match setup.variant {
+            2 => Box::new(BoucWenTerm {
+                u,
+                range: max_abs(u),
+            }),
+            v => {
+                let thresholds = pi_thresholds(u, setup.plays);
+                let plays = plays_of(u, &thresholds);
+                // a negative path cannot carry a Bouc-Wen term (A > 0 in the plant file)
+                let bw = (v == 0 && setup.sign > 0.0).then(|| max_abs(u));
+                Box::new(PiTerm {
+                    u,
+                    thresholds,
+                    sign: setup.sign,
+                    plays,
+                    bw,
+                })
+            }
+        })
+    }
+    fn path_without(&self, gain: f64) -> Option<Box<dyn EffectSpec>> {
+        Some(Box::new(HysteresisSpec::Linear(LinearSpec { gain })))
+    }
+    fn parameter_count(&self, variant: usize, plays: usize) -> (usize, usize) {
+        match variant {
+            0 => (3 + plays, 0),
+            1 => (plays, 0),
+            _ => (3, 0),
+        }
+    }
+    fn check_record(&self, rec: &RecordView, _variant: usize) -> Result<(), RecordError> {
+        for (name, u) in rec.input_names.iter().zip(rec.inputs) {
+            let rev = reversals(u);
+            if rev < 2 {
+                return Err(RecordError::PoorlyExcited {
+                    input: name.to_string(),
+                    why: format!("it reverses direction {rev} times; a hysteresis loop needs the input to go up and down (at least 2 reversals, better several amplitudes)"),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Direction reversals of a signal (moves below 1e-9 of its range ignored).
+pub fn reversals(u: &[f64]) -> usize {
+    let ptp = crate::metrics::ptp(u);
+    let tol = 1e-9 * ptp;
+    let mut dir = 0.0;
+    let mut count = 0;
+    let mut anchor = u.first().copied().unwrap_or(0.0);
+    for &v in u {
+        let d = v - anchor;
+        if d.abs() > tol {
+            let s = d.signum();
+            if dir != 0.0 && s != dir {
+                count += 1;
+            }
+            dir = s;
+            anchor = v;
+        }
+    }
+    count
 }

@@ -1,14 +1,24 @@
 //! # The effect library
 //!
-//! Every physical effect of a hysteretic actuator is written once, here, and serves the plant
-//! simulator, the grey-box model, the diagnosis and the NARX features alike
+//! Every physical effect of a hysteretic actuator is written once, here, in one file, and serves
+//! the plant simulator, the grey-box model, the diagnosis and the NARX features alike
 //! (`docs/adding-an-effect.md`). Each effect file has the same shape:
 //!
-//! - a `…Spec`: the parameters as written in JSON (`plants/*.json`), unchecked;
-//! - `…Spec::check` turns it into the valid parameter type, or an [`EffectError`] that names the
-//!   field, the value and the rule;
+//! - a `…Spec`: the parameters as written in JSON (`plants/*.json`), unchecked ([`Spec`]);
+//! - `…Spec::check` turns it into the valid parameter type ([`Params`]), or an [`EffectError`]
+//!   that names the field, the value and the rule;
 //! - the valid type builds an [`Operator`] for a sampling period: a sampled, stateful map from one
-//!   signal to another.
+//!   signal to another;
+//! - a unit struct implementing [`Effect`]: its place in plant files, its basis bank and
+//!   diagnosis sentence, its NARX features, its grey-box term or filter, its record checks.
+//!
+//! [`registry`] is the one list of effects; nothing outside this folder names one.
+//!
+//! The core the effect files stand on, and that never imports them: [`basis`] (banks and
+//! contexts), [`feature`] (NARX feature definitions), [`fitting`] (grey-box parts), [`spec`]
+//! (specs behind trait objects), the [`Effect`] trait. The hysteresis effect's operators live
+//! beside it: [`play`], [`prandtl_ishlinskii`], [`bouc_wen`]; [`noise`] is the measurement
+//! noise of scenarios (a signal, not a plant effect).
 //!
 //! The chain of a plant output is hysteresis -> creep -> dynamics (`DESIGN.md`):
 //! w = H[u], w_c = (1 + sum_i g_i/(tau_i s + 1)) w, y = wn^2/(s^2 + 2 zeta wn s + wn^2) w_c.
@@ -27,15 +37,24 @@ pub mod coupling;
 pub mod creep;
 pub mod dynamics;
 mod error;
+pub mod feature;
+pub mod fitting;
 pub mod hysteresis;
+mod name;
 pub mod noise;
 pub mod play;
 pub mod prandtl_ishlinskii;
+pub mod registry;
+pub mod spec;
+mod traits;
 pub mod viscous;
 
 pub use error::EffectError;
-
-use serde::{Deserialize, Serialize};
+pub use feature::{FeatureKind, FeatureSpec};
+pub use name::EffectName;
+pub use registry::{effects, register};
+pub use spec::{EffectParams, EffectSpec, Params, Spec};
+pub use traits::{Effect, Slot, StructureView};
 
 /// A sampled operator on one signal with internal state (play states, filter states…).
 ///
@@ -48,58 +67,6 @@ pub trait Operator {
     /// A whole signal from the current state.
     fn apply(&mut self, x: &[f64]) -> Vec<f64> {
         x.iter().map(|&v| self.step(v)).collect()
-    }
-}
-
-/// The effects a model can have, by the names the command line uses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum EffectName {
-    Hysteresis,
-    Creep,
-    Dynamics,
-    Coupling,
-    Viscous,
-}
-
-impl EffectName {
-    /// Every effect, in chain order.
-    pub const ALL: [EffectName; 5] = [
-        EffectName::Hysteresis,
-        EffectName::Creep,
-        EffectName::Dynamics,
-        EffectName::Coupling,
-        EffectName::Viscous,
-    ];
-
-    /// The command-line name.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            EffectName::Hysteresis => "hysteresis",
-            EffectName::Creep => "creep",
-            EffectName::Dynamics => "dynamics",
-            EffectName::Coupling => "coupling",
-            EffectName::Viscous => "viscous",
-        }
-    }
-}
-
-impl std::fmt::Display for EffectName {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
-
-impl std::str::FromStr for EffectName {
-    type Err = EffectError;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        EffectName::ALL
-            .into_iter()
-            .find(|e| e.as_str() == s.trim())
-            .ok_or_else(|| EffectError::UnknownEffect {
-                name: s.to_string(),
-                valid: EffectName::ALL.map(|e| e.as_str()).join(", "),
-            })
     }
 }
 

@@ -14,8 +14,16 @@
 //! - B. F. Spencer Jr., S. J. Dyke, M. K. Sain, J. D. Carlson, "Phenomenological model for
 //!   magnetorheological dampers", J. Eng. Mech. 123(3):230-238, 1997.
 
-use super::{finite, positive, EffectError, Operator};
+use super::basis::{BasisBank, BasisContext, EvidenceContext};
+use super::feature::{FeatureKind, FeatureSpec};
+use super::fitting::{Column, PathSetup, TermFit, TermSpec};
+use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
+use super::{finite, positive, Effect, EffectError, EffectName, Operator, Slot};
 use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
+
+/// The effect's name.
+pub const NAME: EffectName = EffectName::new("viscous");
 
 /// Viscous parameters as written in a plant file.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -101,8 +109,8 @@ pub const BANK_TAUS: [f64; 2] = [5.0, 25.0];
 /// Basis bank: the rate of the direct input and low-passed versions of it ([`BANK_TAUS`]
 /// samples): what a dashpot adds to a model, alone or behind a compliance (a Maxwell element,
 /// spring k in series with dashpot c: force = c du/dt low-passed with tau = c / k).
-pub fn basis(ctx: &super::basis::BasisContext) -> super::basis::BasisBank {
-    let mut bank = super::basis::BasisBank::new(super::EffectName::Viscous);
+pub fn basis(ctx: &BasisContext) -> BasisBank {
+    let mut bank = BasisBank::new(NAME);
     let u = ctx.inputs[ctx.direct];
     let r = rate(u, ctx.ts);
     for m in BANK_TAUS {
@@ -114,6 +122,99 @@ pub fn basis(ctx: &super::basis::BasisContext) -> super::basis::BasisBank {
     }
     bank.push("rate(u)".into(), r);
     bank
+}
+
+impl Spec for ViscousSpec {
+    const EFFECT: EffectName = NAME;
+    type Params = Viscous;
+    fn check(&self) -> Result<Viscous, EffectError> {
+        ViscousSpec::check(self)
+    }
+}
+
+impl Params for Viscous {
+    const EFFECT: EffectName = NAME;
+    fn operator(&self, ts: f64) -> Result<BoxedOperator, EffectError> {
+        Ok(Box::new(Viscous::operator(self, ts)?))
+    }
+}
+
+/// The NARX feature: the rate of an input.
+pub static RATE: FeatureKind = FeatureKind {
+    name: "rate",
+    params: &[],
+    valid: |_| true,
+    label: |n, _| format!("rate({n})"),
+    compute: |u, _, ts| rate(u, ts),
+};
+
+/// The grey-box term: c du/dt, c by least squares.
+struct RateTerm {
+    rate: Vec<f64>,
+}
+
+impl TermFit for RateTerm {
+    fn n_columns(&self) -> usize {
+        1
+    }
+    fn columns<'s>(&'s self, _th: &[f64]) -> Vec<Column<'s>> {
+        vec![(Cow::Borrowed(self.rate.as_slice()), false)]
+    }
+    fn spec(&self, _th: &[f64], _gain: f64, coef: &[f64]) -> TermSpec {
+        TermSpec {
+            spec: Some(Box::new(ViscousSpec {
+                coefficient: coef[0],
+            })),
+            extra_paths: Vec::new(),
+        }
+    }
+}
+
+/// Viscous damping as an effect of the library.
+pub struct ViscousEffect;
+
+impl Effect for ViscousEffect {
+    fn name(&self) -> EffectName {
+        NAME
+    }
+    fn summary(&self) -> &'static str {
+        "a term in the input's rate, c du/dt (the dashpot of an MR damper)"
+    }
+    fn slot(&self) -> Slot {
+        Slot::PathTerm
+    }
+    fn parse_spec(
+        &self,
+        d: &mut dyn erased_serde::Deserializer<'_>,
+    ) -> Result<Box<dyn EffectSpec>, erased_serde::Error> {
+        parse_spec::<ViscousSpec>(d)
+    }
+    fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
+        Some(basis(ctx))
+    }
+    fn evidence(&self, ctx: &EvidenceContext) -> String {
+        let name = ctx.input_names[ctx.direct];
+        format!(
+            "the error follows the rate of {name} (correlation {:.2}): a force in d{name}/dt (viscous damping) is not in the model",
+            crate::metrics::correlation(&rate(ctx.inputs[ctx.direct], ctx.ts), ctx.error),
+        )
+    }
+    fn feature_kinds(&self) -> &'static [FeatureKind] {
+        std::slice::from_ref(&RATE)
+    }
+    fn features(&self, inputs: &[&[f64]], _ts: f64) -> Vec<FeatureSpec> {
+        (0..inputs.len())
+            .map(|j| FeatureSpec::new(&RATE, j, Vec::new()))
+            .collect()
+    }
+    fn term<'a>(&self, setup: &PathSetup<'a>) -> Option<Box<dyn TermFit + 'a>> {
+        Some(Box::new(RateTerm {
+            rate: rate(setup.u, setup.ts),
+        }))
+    }
+    fn parameter_count(&self, _variant: usize, _plays: usize) -> (usize, usize) {
+        (1, 0)
+    }
 }
 
 #[cfg(test)]

@@ -1,37 +1,8 @@
-//! The unfitted grey-box model: which effects, which hysteresis operator, fit options.
+//! The unfitted grey-box model: which effects (and which variant of each), fit options.
 
 use super::GreyBoxError;
-use crate::effect::EffectName;
-use serde::{Deserialize, Serialize};
-use std::str::FromStr;
-
-/// The hysteresis operator of every path.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum HysteresisOperator {
-    /// The default of `hysteresis`: a classical Prandtl-Ishlinskii operator plus one Bouc-Wen
-    /// term on the same input (two paths in the plant file). Exact for either kind of plant;
-    /// the PI part alone cannot follow Bouc-Wen loops (no return-point memory, asymmetric
-    /// branches for Gamma != 0) closer than about 0.3 % of the range.
-    #[serde(rename = "prandtl-ishlinskii+bouc-wen")]
-    Combined,
-    /// Classical Prandtl-Ishlinskii: linear weight + plays with thresholds spread over the
-    /// input range, non-negative play weights (Kuhnen 2003).
-    PrandtlIshlinskii,
-    /// Bouc-Wen, n = 1 (Rakotondrabe 2011 form): y = d u - h.
-    BoucWen,
-}
-
-impl HysteresisOperator {
-    /// The command-line name.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            HysteresisOperator::Combined => "hysteresis",
-            HysteresisOperator::PrandtlIshlinskii => "prandtl-ishlinskii",
-            HysteresisOperator::BoucWen => "bouc-wen",
-        }
-    }
-}
+use crate::effect::fitting::Variant;
+use crate::effect::{registry, Effect, EffectName};
 
 /// Options of the fit.
 #[derive(Debug, Clone, PartialEq)]
@@ -57,45 +28,59 @@ impl Default for FitOptions {
     }
 }
 
-/// An unfitted grey-box model: per output, the sum of paths H_ij[u_j] -> creep -> dynamics ->
-/// + offset, with the effects that are switched on. Fit it with [`GreyBoxConfig::fit`].
+/// An effect of a grey-box model and the variant chosen (index into `Effect::variants`;
+/// 0 is the default, named as the effect).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Selected {
+    pub effect: EffectName,
+    pub variant: usize,
+}
+
+/// An unfitted grey-box model: per output, the sum of paths (a gain per input plus the terms of
+/// the effects that act on a path) -> the output's filters -> + offset, with the effects that
+/// are switched on. Fit it with [`GreyBoxConfig::fit`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct GreyBoxConfig {
-    /// `None`: linear paths (no hysteresis).
-    pub hysteresis: Option<HysteresisOperator>,
-    pub creep: bool,
-    pub dynamics: bool,
-    pub coupling: bool,
-    /// A term in each path input's rate, c du/dt (viscous damping), fitted by least squares.
-    pub viscous: bool,
+    /// The effects, in chain (registry) order.
+    pub effects: Vec<Selected>,
     pub options: FitOptions,
 }
 
-/// Names accepted in an effect list besides the effect names.
-pub const OPERATOR_NAMES: [&str; 2] = ["prandtl-ishlinskii", "bouc-wen"];
-
 fn valid_list() -> String {
+    let variants: Vec<String> = registry::effects()
+        .iter()
+        .filter(|e| e.variants().len() > 1)
+        .map(|e| {
+            let names: Vec<&str> = e.variants()[1..].iter().map(|v| v.name).collect();
+            format!("{} for {}", names.join(", "), e.name())
+        })
+        .collect();
     format!(
-        "{} (or a hysteresis operator: {}; `none` for a linear static model)",
-        EffectName::ALL.map(|e| e.as_str()).join(", "),
-        OPERATOR_NAMES.join(", ")
+        "{} (or an operator: {}; `none` for a linear static model)",
+        registry::names(),
+        variants.join("; ")
     )
 }
 
+/// The effect and variant an effect-list item names (`creep`, `bouc-wen`).
+fn lookup(item: &str) -> Option<(&'static dyn Effect, usize)> {
+    let effects = registry::effects();
+    if let Some(e) = effects.iter().find(|e| e.name().as_str() == item) {
+        return Some((*e, 0));
+    }
+    effects.into_iter().find_map(|e| {
+        e.variants()
+            .iter()
+            .position(|v| v.name == item)
+            .map(|i| (e, i))
+    })
+}
+
 impl GreyBoxConfig {
-    /// A model with the given effects and default options.
-    pub fn new(
-        hysteresis: Option<HysteresisOperator>,
-        creep: bool,
-        dynamics: bool,
-        coupling: bool,
-    ) -> GreyBoxConfig {
+    /// A linear static model (no effect) with default options.
+    pub fn linear() -> GreyBoxConfig {
         GreyBoxConfig {
-            hysteresis,
-            creep,
-            dynamics,
-            coupling,
-            viscous: false,
+            effects: Vec::new(),
             options: FitOptions::default(),
         }
     }
@@ -103,95 +88,79 @@ impl GreyBoxConfig {
     /// Parse a comma-separated effect list such as `hysteresis,creep,dynamics` or
     /// `bouc-wen,dynamics`; `none` (or an empty list) is a linear static model.
     pub fn from_effect_list(list: &str) -> Result<GreyBoxConfig, GreyBoxError> {
-        let mut cfg = GreyBoxConfig::new(None, false, false, false);
-        let mut seen: Vec<String> = Vec::new();
-        let mut op_name: Option<String> = None;
+        let mut cfg = GreyBoxConfig::linear();
+        let mut seen: Vec<(String, EffectName)> = Vec::new();
         for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
             if item == "none" {
                 continue;
             }
-            if seen.iter().any(|s| s == item) {
+            if seen.iter().any(|(s, _)| s == item) {
                 return Err(GreyBoxError::RepeatedEffect { name: item.into() });
             }
-            seen.push(item.to_string());
-            let op = match item {
-                "prandtl-ishlinskii" => Some(HysteresisOperator::PrandtlIshlinskii),
-                "bouc-wen" => Some(HysteresisOperator::BoucWen),
-                _ => None,
-            };
-            let effect = match op {
-                Some(_) => EffectName::Hysteresis,
-                None => EffectName::from_str(item).map_err(|_| GreyBoxError::UnknownEffect {
-                    name: item.to_string(),
-                    valid: valid_list(),
-                })?,
-            };
-            match effect {
-                EffectName::Hysteresis => {
-                    if let Some(first) = &op_name {
-                        return Err(GreyBoxError::TwoOperators {
-                            first: first.clone(),
-                            second: item.to_string(),
-                        });
-                    }
-                    op_name = Some(item.to_string());
-                    cfg.hysteresis = Some(op.unwrap_or(HysteresisOperator::Combined));
-                }
-                EffectName::Creep => cfg.creep = true,
-                EffectName::Dynamics => cfg.dynamics = true,
-                EffectName::Coupling => cfg.coupling = true,
-                EffectName::Viscous => cfg.viscous = true,
+            let (effect, variant) = lookup(item).ok_or_else(|| GreyBoxError::UnknownEffect {
+                name: item.to_string(),
+                valid: valid_list(),
+            })?;
+            if let Some((first, _)) = seen.iter().find(|(_, e)| *e == effect.name()) {
+                let options: Vec<&str> = effect.variants().iter().map(|v| v.name).collect();
+                return Err(GreyBoxError::TwoOperators {
+                    effect: effect.name().to_string(),
+                    first: first.clone(),
+                    second: item.to_string(),
+                    options: options.join(", "),
+                });
             }
+            seen.push((item.to_string(), effect.name()));
+            cfg.effects.push(Selected {
+                effect: effect.name(),
+                variant,
+            });
         }
+        cfg.effects.sort_by_key(|s| s.effect);
         Ok(cfg)
     }
 
     /// The effects switched on, in chain order.
     pub fn effects(&self) -> Vec<EffectName> {
-        let mut v = Vec::new();
-        if self.hysteresis.is_some() {
-            v.push(EffectName::Hysteresis);
-        }
-        if self.creep {
-            v.push(EffectName::Creep);
-        }
-        if self.dynamics {
-            v.push(EffectName::Dynamics);
-        }
-        if self.coupling {
-            v.push(EffectName::Coupling);
-        }
-        if self.viscous {
-            v.push(EffectName::Viscous);
-        }
-        v
+        self.effects.iter().map(|s| s.effect).collect()
     }
 
-    /// The same model with one more effect (the "add the missing effect" step).
+    /// True when the model has `effect`.
+    pub fn has(&self, effect: EffectName) -> bool {
+        self.effects.iter().any(|s| s.effect == effect)
+    }
+
+    /// The same model with one more effect (the "add the missing effect" step), at its
+    /// default variant; no change when it has it.
     pub fn with_effect(&self, effect: EffectName) -> GreyBoxConfig {
         let mut c = self.clone();
-        match effect {
-            EffectName::Hysteresis => {
-                if c.hysteresis.is_none() {
-                    c.hysteresis = Some(HysteresisOperator::Combined);
-                }
-            }
-            EffectName::Creep => c.creep = true,
-            EffectName::Dynamics => c.dynamics = true,
-            EffectName::Coupling => c.coupling = true,
-            EffectName::Viscous => c.viscous = true,
+        if !c.has(effect) {
+            c.effects.push(Selected { effect, variant: 0 });
+            c.effects.sort_by_key(|s| s.effect);
         }
         c
+    }
+
+    /// The variant of each selected effect that has variants.
+    pub fn variants(&self) -> Vec<(EffectName, &'static Variant)> {
+        self.effects
+            .iter()
+            .filter_map(|s| {
+                let v = registry::effect(s.effect)?.variants().get(s.variant)?;
+                Some((s.effect, v))
+            })
+            .collect()
     }
 
     /// The effect list as the command line writes it (`none` when empty).
     pub fn effect_list(&self) -> String {
         let v: Vec<&str> = self
-            .effects()
+            .effects
             .iter()
-            .map(|e| match (e, self.hysteresis) {
-                (EffectName::Hysteresis, Some(op)) => op.as_str(),
-                (e, _) => e.as_str(),
+            .map(|s| {
+                registry::effect(s.effect)
+                    .and_then(|e| e.variants().get(s.variant))
+                    .map_or(s.effect.as_str(), |v| v.name)
             })
             .collect();
         if v.is_empty() {
@@ -209,13 +178,15 @@ mod tests {
     #[test]
     fn parses_effects_and_operators() {
         let c = GreyBoxConfig::from_effect_list("bouc-wen, creep,dynamics").unwrap();
-        assert_eq!(c.hysteresis, Some(HysteresisOperator::BoucWen));
-        assert!(c.creep && c.dynamics && !c.coupling);
-        let c = GreyBoxConfig::from_effect_list("hysteresis,coupling").unwrap();
-        assert_eq!(c.hysteresis, Some(HysteresisOperator::Combined));
-        assert!(c.coupling);
+        assert_eq!(c.effect_list(), "bouc-wen,creep,dynamics");
+        assert_eq!(c.effects.len(), 3);
+        assert_eq!(c.effects[0].variant, 2);
+        let c = GreyBoxConfig::from_effect_list("coupling,hysteresis").unwrap();
+        assert_eq!(c.effect_list(), "hysteresis,coupling");
+        assert_eq!(c.effects[0].variant, 0);
         let c = GreyBoxConfig::from_effect_list("prandtl-ishlinskii").unwrap();
-        assert_eq!(c.hysteresis, Some(HysteresisOperator::PrandtlIshlinskii));
+        assert_eq!(c.effects[0].variant, 1);
+        assert_eq!(c.variants()[0].1.file, "prandtl-ishlinskii");
         assert_eq!(
             GreyBoxConfig::from_effect_list("none").unwrap().effects(),
             vec![]

@@ -1,83 +1,13 @@
 //! The driver: checks a record against a configuration, sets up one problem per output, runs
 //! the initialisation and Levenberg-Marquardt, and scores the fitted plant by simulating it.
 
-use super::fit::{levenberg_marquardt, LmResult, OutputProblem, OutputStructure};
-use super::{
-    FitSummary, FittedGreyBox, GreyBoxConfig, GreyBoxError, HysteresisOperator, OutputFit,
-};
+use super::fit::{levenberg_marquardt, Chosen, LmResult, OutputProblem, OutputStructure};
+use super::{FitSummary, FittedGreyBox, GreyBoxConfig, GreyBoxError, OutputFit};
 use crate::data::IoRecord;
+use crate::effect::fitting::{RecordError, RecordView};
+use crate::effect::{registry, Slot};
 use crate::plant::{PlantSpec, Units};
 use std::time::Instant;
-
-/// Creep time constants: one per decade (powers of ten) from about 5 samples to about a third
-/// of the record. `Err(needed samples)` when fewer than three (two decades) fit.
-pub fn creep_time_constants(samples: usize, ts: f64) -> Result<Vec<f64>, usize> {
-    let k_min = (5.0 * ts).log10().ceil() as i32;
-    let span = samples as f64 * ts / 3.0;
-    // the largest power of ten up to about twice a third of the record
-    let k_max = (span.log10() + 0.3).floor() as i32;
-    if k_max < k_min + 2 {
-        let needed = (3.0 * 10f64.powf(k_min as f64 + 1.7) / ts).ceil() as usize;
-        return Err(needed);
-    }
-    Ok((k_min..=k_max).map(|k| 10f64.powi(k)).collect())
-}
-
-/// Direction reversals of a signal (moves below 1e-9 of its range ignored).
-pub fn reversals(u: &[f64]) -> usize {
-    let ptp = crate::metrics::ptp(u);
-    let tol = 1e-9 * ptp;
-    let mut dir = 0.0;
-    let mut count = 0;
-    let mut anchor = u.first().copied().unwrap_or(0.0);
-    for &v in u {
-        let d = v - anchor;
-        if d.abs() > tol {
-            let s = d.signum();
-            if dir != 0.0 && s != dir {
-                count += 1;
-            }
-            dir = s;
-            anchor = v;
-        }
-    }
-    count
-}
-
-/// The longest run of samples over which the signal stays within 1e-6 of its range.
-pub fn longest_hold(u: &[f64]) -> usize {
-    let tol = 1e-6 * crate::metrics::ptp(u);
-    let (mut best, mut run) = (0, 1);
-    for w in u.windows(2) {
-        if (w[1] - w[0]).abs() <= tol {
-            run += 1;
-        } else {
-            run = 1;
-        }
-        best = best.max(run);
-    }
-    best
-}
-
-/// Fraction of the (mean-removed) input variance that passes a first-order low-pass of time
-/// constant `tau`.
-pub fn slow_fraction(u: &[f64], ts: f64, tau: f64) -> f64 {
-    let m = crate::metrics::mean(u);
-    let a = (-ts / tau).exp();
-    let mut z = 0.0;
-    let (mut num, mut den) = (0.0, 0.0);
-    for &v in u {
-        let x = v - m;
-        z = a * z + (1.0 - a) * x;
-        num += z * z;
-        den += x * x;
-    }
-    if den > 0.0 {
-        num / den
-    } else {
-        0.0
-    }
-}
 
 /// Initialise (plus `extra` starts), then two Levenberg-Marquardt stages: creep held fixed from
 /// each start, then everything from the best.
@@ -89,7 +19,7 @@ fn fit_problem(
 ) -> Result<LmResult, GreyBoxError> {
     let mut starts = prob.initial(coarse, 3);
     starts.extend(extra);
-    let stage1 = prob.without_creep();
+    let stage1 = prob.first_stage();
     let mut best: Option<LmResult> = None;
     let mut iterations = 0;
     for th0 in starts {
@@ -119,40 +49,78 @@ pub fn train_samples(n: usize, fraction: f64) -> usize {
 }
 
 impl GreyBoxConfig {
-    /// The structure of output `o` of a record with `n_inputs` inputs.
-    fn structure(
-        &self,
-        rec: &IoRecord,
-        o: usize,
-        creep_taus: &[f64],
-    ) -> Result<OutputStructure, GreyBoxError> {
+    /// The selected effects with their registry entries.
+    fn chosen(&self) -> Vec<Chosen> {
+        self.effects
+            .iter()
+            .filter_map(|s| {
+                registry::effect(s.effect).map(|effect| Chosen {
+                    effect,
+                    variant: s.variant,
+                })
+            })
+            .collect()
+    }
+
+    /// The structure of output `o` of a record.
+    fn structure(&self, rec: &IoRecord, o: usize) -> Result<OutputStructure, GreyBoxError> {
         let n_in = rec.inputs.len();
-        let paths = if self.coupling {
-            (0..n_in).collect()
-        } else if n_in == 1 {
-            vec![0]
-        } else if o < n_in {
-            vec![o]
-        } else {
-            return Err(GreyBoxError::NoDirectInput {
-                path: rec.path.clone(),
-                output: o + 1,
-                name: rec.outputs[o].name.clone(),
-                inputs: n_in,
-                names: rec.input_names().join(", "),
-            });
+        let chosen = self.chosen();
+        let paths = match chosen.iter().find_map(|c| c.effect.path_inputs(n_in, o)) {
+            Some(p) => p,
+            None if n_in == 1 => vec![0],
+            None if o < n_in => vec![o],
+            None => {
+                return Err(GreyBoxError::NoDirectInput {
+                    path: rec.path.clone(),
+                    output: o + 1,
+                    name: rec.outputs[o].name.clone(),
+                    inputs: n_in,
+                    names: rec.input_names().join(", "),
+                })
+            }
         };
+        let (terms, filters) = chosen
+            .into_iter()
+            .filter(|c| c.effect.slot() != Slot::None)
+            .partition(|c| c.effect.slot() == Slot::PathTerm);
         Ok(OutputStructure {
             paths,
-            operator: self.hysteresis,
-            creep_taus: creep_taus.to_vec(),
-            dynamics: self.dynamics,
-            viscous: self.viscous,
+            terms,
+            filters,
         })
     }
 
-    /// Check that the record can support this model; returns the creep time constants.
-    fn check_record(&self, rec: &IoRecord) -> Result<Vec<f64>, GreyBoxError> {
+    /// The error of `effect` that a record check returned, with the record's details.
+    fn record_error(&self, rec: &IoRecord, effect: &str, e: RecordError) -> GreyBoxError {
+        match e {
+            RecordError::TooShort { needed, why } => GreyBoxError::TooShort {
+                path: rec.path.clone(),
+                samples: rec.len(),
+                needed,
+                effects: self.effect_list(),
+                why,
+            },
+            RecordError::PoorlyExcited { input, why } => GreyBoxError::PoorlyExcited {
+                path: rec.path.clone(),
+                input,
+                effect: effect.to_string(),
+                why,
+            },
+            RecordError::NeedsInputs { needed, why } => GreyBoxError::NeedsInputs {
+                path: rec.path.clone(),
+                effect: effect.to_string(),
+                needed,
+                inputs: rec.inputs.len(),
+                names: rec.input_names().join(", "),
+                why,
+            },
+        }
+    }
+
+    /// Check that the record can support this model: enough samples for the parameters,
+    /// outputs and inputs that move, and what each effect needs.
+    fn check_record(&self, rec: &IoRecord) -> Result<(), GreyBoxError> {
         let n = rec.len();
         let effects = self.effect_list();
         if rec.outputs.is_empty() {
@@ -160,21 +128,32 @@ impl GreyBoxConfig {
                 path: rec.path.clone(),
             });
         }
-        if self.coupling && rec.inputs.len() < 2 {
-            return Err(GreyBoxError::CouplingNeedsInputs {
-                path: rec.path.clone(),
-                inputs: rec.inputs.len(),
-                names: rec.input_names().join(", "),
-            });
-        }
-        let per_path = match self.hysteresis {
-            None => 1,
-            Some(HysteresisOperator::PrandtlIshlinskii) => 1 + self.options.plays,
-            Some(HysteresisOperator::Combined) => 4 + self.options.plays,
-            Some(HysteresisOperator::BoucWen) => 4,
+        let names: Vec<&str> = rec.inputs.iter().map(|s| s.name.as_str()).collect();
+        let inputs: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
+        let view = RecordView {
+            input_names: &names,
+            inputs: &inputs,
+            samples: n,
+            ts: rec.ts,
         };
-        let paths = if self.coupling { rec.inputs.len() } else { 1 };
-        let params = per_path * paths + 1 + if self.dynamics { 2 } else { 0 } + 6;
+        let chosen = self.chosen();
+        // effects that need more inputs first (they change the structure)
+        for c in chosen.iter().filter(|c| c.effect.slot() == Slot::None) {
+            c.effect
+                .check_record(&view, c.variant)
+                .map_err(|e| self.record_error(rec, c.effect.name().as_str(), e))?;
+        }
+        let (mut per_path, mut per_output) = (1, 0);
+        for c in &chosen {
+            let (p, o) = c.effect.parameter_count(c.variant, self.options.plays);
+            per_path += p;
+            per_output += o;
+        }
+        let paths = chosen
+            .iter()
+            .find_map(|c| c.effect.path_inputs(rec.inputs.len(), 0))
+            .map_or(1, |p| p.len());
+        let params = per_path * paths + 1 + per_output + 6;
         let needed = (10 * params).max(100);
         if n < needed {
             return Err(GreyBoxError::TooShort {
@@ -202,50 +181,13 @@ impl GreyBoxConfig {
                     why: "the input is constant".into(),
                 });
             }
-            if self.hysteresis.is_some() {
-                let rev = reversals(&s.values);
-                if rev < 2 {
-                    return Err(GreyBoxError::PoorlyExcited {
-                        path: rec.path.clone(),
-                        input: s.name.clone(),
-                        effect: "hysteresis".into(),
-                        why: format!("it reverses direction {rev} times; a hysteresis loop needs the input to go up and down (at least 2 reversals, better several amplitudes)"),
-                    });
-                }
-            }
         }
-        if !self.creep {
-            return Ok(Vec::new());
+        for c in chosen.iter().filter(|c| c.effect.slot() != Slot::None) {
+            c.effect
+                .check_record(&view, c.variant)
+                .map_err(|e| self.record_error(rec, c.effect.name().as_str(), e))?;
         }
-        let taus = creep_time_constants(n, rec.ts).map_err(|needed| GreyBoxError::TooShort {
-            path: rec.path.clone(),
-            samples: n,
-            needed,
-            effects: effects.clone(),
-            why: format!(
-                "creep needs time constants over at least two decades between 5 samples ({:.3e} s) and a third of the record ({:.3e} s); record longer holds",
-                5.0 * rec.ts,
-                n as f64 * rec.ts / 3.0
-            ),
-        })?;
-        let tau_mid = (taus[0] * taus[taus.len() - 1]).sqrt();
-        for s in &rec.inputs {
-            let hold = longest_hold(&s.values) as f64 * rec.ts;
-            let slow = slow_fraction(&s.values, rec.ts, tau_mid);
-            if hold < tau_mid && slow < 0.01 {
-                return Err(GreyBoxError::PoorlyExcited {
-                    path: rec.path.clone(),
-                    input: s.name.clone(),
-                    effect: "creep".into(),
-                    why: format!(
-                        "creep needs holds (the input held for {tau_mid:.3} s or more) or slow content (below {:.3} Hz); the longest hold is {hold:.3} s and the slow content carries {:.2} % of the input variance",
-                        1.0 / (2.0 * std::f64::consts::PI * tau_mid),
-                        100.0 * slow
-                    ),
-                });
-            }
-        }
-        Ok(taus)
+        Ok(())
     }
 
     /// Fit the model to a record (inputs and outputs as selected in `rec`). The first
@@ -260,13 +202,13 @@ impl GreyBoxConfig {
         let n = rec.len();
         let n_train = train_samples(n, f);
         let train = rec.slice(0..n_train);
-        let taus = self.check_record(&train)?;
+        self.check_record(&train)?;
         let input_names = rec.input_names();
         let u: Vec<&[f64]> = train.inputs.iter().map(|s| s.values.as_slice()).collect();
         let mut outputs = Vec::new();
         let mut runs = Vec::new();
         for (o, out) in train.outputs.iter().enumerate() {
-            let st = self.structure(&train, o, &taus)?;
+            let st = self.structure(&train, o)?;
             let t0 = Instant::now();
             let u = &u;
             let names = &input_names;
@@ -282,19 +224,25 @@ impl GreyBoxConfig {
                 )
             };
             let prob = problem(&st, self.options.plays);
-            // the combined operator also starts from the Bouc-Wen-only fit, so that it is never
-            // worse than `bouc-wen` (its own starts keep it never worse than PI)
+            // a variant that names a warm start also starts from the fit with that (simpler)
+            // variant, so that it is never worse than it
             let mut extra = Vec::new();
             let mut iterations = 0;
-            if st.operator == Some(HysteresisOperator::Combined) {
-                let st_bw = OutputStructure {
-                    operator: Some(HysteresisOperator::BoucWen),
-                    ..st.clone()
+            for (i, c) in st.terms.iter().enumerate() {
+                let Some(w) = c
+                    .effect
+                    .variants()
+                    .get(c.variant)
+                    .and_then(|v| v.warm_start)
+                else {
+                    continue;
                 };
-                let bw = problem(&st_bw, 0);
-                let r = fit_problem(&bw, &problem(&st_bw, 0), Vec::new(), &self.options)?;
+                let mut st_w = st.clone();
+                st_w.terms[i].variant = w;
+                let simple = problem(&st_w, 0);
+                let r = fit_problem(&simple, &problem(&st_w, 0), Vec::new(), &self.options)?;
                 iterations += r.iterations;
-                extra.push(prob.theta_from_bouc_wen(&bw, &r.theta));
+                extra.push(prob.theta_from(&simple, &r.theta));
             }
             let res = fit_problem(
                 &prob,
@@ -330,8 +278,7 @@ impl GreyBoxConfig {
         };
         let plant = spec.check(&rec.path)?;
         let mut model = FittedGreyBox {
-            effects: self.effects(),
-            hysteresis_operator: self.hysteresis,
+            config: self.clone(),
             plant,
             fit: FitSummary {
                 rmse: 0.0,

@@ -10,15 +10,23 @@ pub enum GreyBoxError {
     UnknownEffect { name: String, valid: String },
     #[error("`{name}` is named twice in the effect list")]
     RepeatedEffect { name: String },
-    #[error("two hysteresis operators are named (`{first}` and `{second}`); name one of hysteresis, prandtl-ishlinskii, bouc-wen")]
-    TwoOperators { first: String, second: String },
+    #[error("two {effect} operators are named (`{first}` and `{second}`); name one of {options}")]
+    TwoOperators {
+        effect: String,
+        first: String,
+        second: String,
+        options: String,
+    },
     #[error(
-        "{path}: `coupling` needs a record with several inputs, but it has {inputs} ({names})"
+        "{path}: `{effect}` needs a record with several inputs (at least {needed}), but it has {inputs} ({names}): {why}"
     )]
-    CouplingNeedsInputs {
+    NeedsInputs {
         path: PathBuf,
+        effect: String,
+        needed: usize,
         inputs: usize,
         names: String,
+        why: String,
     },
     #[error("{path}: output {output} (`{name}`) has no input of the same index ({inputs} inputs: {names}); add `coupling` so that every output sees every input, or select fewer outputs")]
     NoDirectInput {

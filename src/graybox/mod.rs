@@ -7,6 +7,10 @@
 //! sees only input i; with it, every input. The fitted model is a [`PlantSpec`](crate::plant::PlantSpec)
 //! and is simulated by exactly the plant code.
 //!
+//! The fitter names no effect: each effect of the library says what it adds (a term on each
+//! path, a filter on the output, which inputs drive an output, what the record must show) in
+//! its own file ([`crate::effect::fitting`]).
+//!
 //! - [`GreyBoxConfig`]: the unfitted model (effects, operator, options); `fit` it to a record;
 //! - [`FittedGreyBox`]: the fitted model, `simulate`, `save` and `load` (versioned file).
 //!
@@ -32,7 +36,7 @@ mod fit;
 mod model;
 pub mod nnls;
 
-pub use config::{FitOptions, GreyBoxConfig, HysteresisOperator, OPERATOR_NAMES};
-pub use driver::{creep_time_constants, longest_hold, reversals, slow_fraction, train_samples};
+pub use config::{FitOptions, GreyBoxConfig, Selected};
+pub use driver::train_samples;
 pub use error::GreyBoxError;
 pub use model::{FitSummary, FittedGreyBox, GreyBoxFile, OutputFit, FORMAT, VERSION};

@@ -5,9 +5,9 @@
 //! `{"format": "hystbench-greybox", "version": 1, "effects": [...], "inputs": [...],
 //! "outputs": [...], "plant": {...}, "fit": {...}}`.
 
-use super::{GreyBoxConfig, GreyBoxError, HysteresisOperator};
+use super::{GreyBoxConfig, GreyBoxError, Selected};
 use crate::data::IoRecord;
-use crate::effect::EffectName;
+use crate::effect::{registry, EffectName};
 use crate::metrics::Scores;
 use crate::plant::{Plant, PlantSpec};
 use serde::{Deserialize, Serialize};
@@ -61,51 +61,124 @@ pub struct FitSummary {
     pub scored_on: String,
 }
 
-/// A grey-box model file.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// A grey-box model file. Besides the fields below, each effect with variants has its
+/// variant's file name under `<effect>_operator` (`"hysteresis_operator": "bouc-wen"`).
+#[derive(Debug, Clone, PartialEq)]
 pub struct GreyBoxFile {
     pub format: String,
     pub version: u32,
     pub effects: Vec<EffectName>,
-    /// The hysteresis operator of the paths, when `hysteresis` is one of the effects.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub hysteresis_operator: Option<HysteresisOperator>,
+    /// `(effect, variant file name)` for the effects that have variants.
+    pub operators: Vec<(EffectName, String)>,
     pub inputs: Vec<String>,
     pub outputs: Vec<String>,
     pub plant: PlantSpec,
     pub fit: FitSummary,
 }
 
+impl Serialize for GreyBoxFile {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut m = s.serialize_map(None)?;
+        m.serialize_entry("format", &self.format)?;
+        m.serialize_entry("version", &self.version)?;
+        m.serialize_entry("effects", &self.effects)?;
+        for (e, v) in &self.operators {
+            m.serialize_entry(&format!("{e}_operator"), v)?;
+        }
+        m.serialize_entry("inputs", &self.inputs)?;
+        m.serialize_entry("outputs", &self.outputs)?;
+        m.serialize_entry("plant", &self.plant)?;
+        m.serialize_entry("fit", &self.fit)?;
+        m.end()
+    }
+}
+
+impl<'de> Deserialize<'de> for GreyBoxFile {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = GreyBoxFile;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a grey-box model file")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut map: A,
+            ) -> Result<GreyBoxFile, A::Error> {
+                use serde::de::Error;
+                let (mut format, mut version, mut effects) = (None, None, None);
+                let (mut inputs, mut outputs, mut plant, mut fit) = (None, None, None, None);
+                let mut operators: Vec<(EffectName, String)> = Vec::new();
+                while let Some(key) = map.next_key::<String>()? {
+                    match key.as_str() {
+                        "format" => format = Some(map.next_value()?),
+                        "version" => version = Some(map.next_value()?),
+                        "effects" => effects = Some(map.next_value()?),
+                        "inputs" => inputs = Some(map.next_value()?),
+                        "outputs" => outputs = Some(map.next_value()?),
+                        "plant" => plant = Some(map.next_value()?),
+                        "fit" => fit = Some(map.next_value()?),
+                        k => {
+                            let effect = k
+                                .strip_suffix("_operator")
+                                .and_then(registry::find)
+                                .filter(|e| !e.variants().is_empty())
+                                .ok_or_else(|| {
+                                    A::Error::custom(format!(
+                                        "unknown field `{k}`, expected one of `format`, `version`, `effects`, `<effect>_operator`, `inputs`, `outputs`, `plant`, `fit`"
+                                    ))
+                                })?;
+                            let v: String = map.next_value()?;
+                            if !effect.variants().iter().any(|x| x.file == v) {
+                                let known: Vec<&str> =
+                                    effect.variants().iter().map(|x| x.file).collect();
+                                return Err(A::Error::custom(format!(
+                                    "`{k}` is `{v}`; known: {}",
+                                    known.join(", ")
+                                )));
+                            }
+                            operators.push((effect.name(), v));
+                        }
+                    }
+                }
+                Ok(GreyBoxFile {
+                    format: format.ok_or_else(|| A::Error::missing_field("format"))?,
+                    version: version.ok_or_else(|| A::Error::missing_field("version"))?,
+                    effects: effects.ok_or_else(|| A::Error::missing_field("effects"))?,
+                    operators,
+                    inputs: inputs.ok_or_else(|| A::Error::missing_field("inputs"))?,
+                    outputs: outputs.ok_or_else(|| A::Error::missing_field("outputs"))?,
+                    plant: plant.ok_or_else(|| A::Error::missing_field("plant"))?,
+                    fit: fit.ok_or_else(|| A::Error::missing_field("fit"))?,
+                })
+            }
+        }
+        d.deserialize_map(V)
+    }
+}
+
 /// A fitted grey-box model: a checked plant plus how it was fitted.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FittedGreyBox {
-    pub effects: Vec<EffectName>,
-    pub hysteresis_operator: Option<HysteresisOperator>,
+    /// The unfitted model it was fitted from (its effects and their variants; default options):
+    /// `model.config.with_effect(creep).fit(&rec)` refits with one more effect.
+    pub config: GreyBoxConfig,
     pub plant: Plant,
     pub fit: FitSummary,
 }
 
 impl FittedGreyBox {
-    /// The unfitted model this one was fitted from (effects and operator, default options):
-    /// `model.config().with_effect(EffectName::Creep).fit(&rec)` refits with one more effect.
+    /// The unfitted model this one was fitted from (effects and variants, default options).
     pub fn config(&self) -> GreyBoxConfig {
-        let has = |e: EffectName| self.effects.contains(&e);
-        let mut c = GreyBoxConfig::new(
-            if has(EffectName::Hysteresis) {
-                Some(
-                    self.hysteresis_operator
-                        .unwrap_or(HysteresisOperator::Combined),
-                )
-            } else {
-                None
-            },
-            has(EffectName::Creep),
-            has(EffectName::Dynamics),
-            has(EffectName::Coupling),
-        );
-        c.viscous = has(EffectName::Viscous);
+        let mut c = self.config.clone();
+        c.options = super::FitOptions::default();
         c
+    }
+
+    /// The effects, in chain order.
+    pub fn effects(&self) -> Vec<EffectName> {
+        self.config.effects()
     }
 
     /// Input names, in model order.
@@ -174,8 +247,13 @@ impl FittedGreyBox {
         GreyBoxFile {
             format: FORMAT.into(),
             version: VERSION,
-            effects: self.effects.clone(),
-            hysteresis_operator: self.hysteresis_operator,
+            effects: self.effects(),
+            operators: self
+                .config
+                .variants()
+                .into_iter()
+                .map(|(e, v)| (e, v.file.to_string()))
+                .collect(),
             inputs: self.plant.inputs.clone(),
             outputs: self.plant.outputs.clone(),
             plant: self.plant.spec.clone(),
@@ -277,9 +355,22 @@ impl FittedGreyBox {
                 ),
             ));
         }
+        let mut config = GreyBoxConfig::linear();
+        for e in &file.effects {
+            let variant = registry::effect(*e)
+                .and_then(|x| {
+                    let (_, file_name) = file.operators.iter().find(|(o, _)| o == e)?;
+                    x.variants().iter().position(|v| v.file == file_name)
+                })
+                .unwrap_or(0);
+            config.effects.push(Selected {
+                effect: *e,
+                variant,
+            });
+        }
+        config.effects.sort_by_key(|s| s.effect);
         Ok(FittedGreyBox {
-            effects: file.effects,
-            hysteresis_operator: file.hysteresis_operator,
+            config,
             plant,
             fit: file.fit,
         })

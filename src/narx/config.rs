@@ -3,8 +3,8 @@
 use super::mlp::Mlp;
 use super::regressors::Lags;
 use super::NarxError;
-use crate::effect::basis::FeatureSpec;
 use crate::effect::EffectName;
+use crate::effect::FeatureSpec;
 use serde::{Deserialize, Serialize};
 
 /// Gradient method.
@@ -116,7 +116,7 @@ pub struct RobustSettings {
     #[serde(default = "yes")]
     pub short_record_settings: bool,
     /// Feature selection by the protocol: the model is fitted without and with these effects'
-    /// basis signals (`effect::basis::feature_specs` on the training record, added to
+    /// basis signals (`Effect::features` on the training record, added to
     /// `features`), and the one with the lower free-run validation error (training record only,
     /// summed over the outputs in standardised units) is kept. Default: hysteresis (play
     /// operators); empty: no selection. Ignored by `study` and on records under
@@ -204,7 +204,7 @@ impl Default for RobustSettings {
             sim_patience: 6,
             weight_decay: 0.0,
             short_record_settings: true,
-            try_features: vec![EffectName::Hysteresis],
+            try_features: crate::effect::registry::narx_candidates(),
             feature_gain: feature_gain(),
             ensemble: None,
             combine: Combine::Median,

@@ -9,9 +9,9 @@ use super::train::{
 };
 use super::NarxError;
 use crate::data::IoRecord;
-use crate::effect::basis::{feature_specs, FeatureSpec};
 use crate::effect::noise::stream_seed;
 use crate::effect::EffectName;
+use crate::effect::{registry, FeatureSpec};
 use crate::metrics::{scores, Scores};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -193,7 +193,9 @@ impl NarxConfig {
         let inputs = input_slices(train);
         let mut candidates: Vec<FeatureSpec> = Vec::new();
         for e in &self.robust.try_features {
-            for f in feature_specs(*e, &inputs, train.ts) {
+            let specs =
+                registry::effect(*e).map_or_else(Vec::new, |x| x.features(&inputs, train.ts));
+            for f in specs {
                 if !self.features.contains(&f) && !candidates.contains(&f) {
                     candidates.push(f);
                 }

@@ -1,8 +1,9 @@
-//! Simulation of chain plants: paths (hysteresis + viscous, path dynamics) -> sum -> creep ->
-//! dynamics, per output.
+//! Simulation of chain plants: paths (terms such as hysteresis + viscous, then path filters such
+//! as dynamics) -> sum -> output filters (creep, dynamics) -> + offset, per output.
 
 use super::{OdePlant, OutputChain, Plant, PlantError, PlantKind};
-use crate::effect::{EffectError, Operator};
+use crate::effect::spec::BoxedOperator;
+use crate::effect::{EffectError, EffectParams};
 
 fn effect_err(plant: &Plant, field: String, source: EffectError) -> PlantError {
     PlantError::Effect {
@@ -25,50 +26,43 @@ impl OutputChain {
         let n = inputs[0].len();
         let mut paths = Vec::with_capacity(self.paths.len());
         for (k, path) in self.paths.iter().enumerate() {
-            let dynamics = path
-                .dynamics
-                .as_ref()
-                .map(|d| d.operator(ts))
-                .transpose()
-                .map_err(|e| effect_err(plant, format!("outputs[{o}].paths[{k}].dynamics"), e))?;
-            let viscous = path
-                .viscous
-                .as_ref()
-                .map(|v| v.operator(ts))
-                .transpose()
-                .map_err(|e| effect_err(plant, format!("outputs[{o}].paths[{k}].viscous"), e))?;
-            paths.push((
-                inputs[path.input],
-                path.hysteresis.operator(),
-                viscous,
-                dynamics,
-            ));
+            let at = |e: &dyn EffectParams| format!("outputs[{o}].paths[{k}].{}", e.effect());
+            let ops = |list: &[Box<dyn EffectParams>]| -> Result<Vec<BoxedOperator>, PlantError> {
+                list.iter()
+                    .map(|e| {
+                        e.operator(ts)
+                            .map_err(|err| effect_err(plant, at(e.as_ref()), err))
+                    })
+                    .collect()
+            };
+            paths.push((inputs[path.input], ops(&path.terms)?, ops(&path.filters)?));
         }
-        let mut creep = self.creep.as_ref().map(|c| c.operator(ts));
-        let mut dynamics = self
-            .dynamics
-            .as_ref()
-            .map(|d| d.operator(ts))
-            .transpose()
-            .map_err(|e| effect_err(plant, format!("outputs[{o}].dynamics"), e))?;
+        let mut filters = self
+            .filters
+            .iter()
+            .map(|e| {
+                e.operator(ts)
+                    .map_err(|err| effect_err(plant, format!("outputs[{o}].{}", e.effect()), err))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
         let mut out = Vec::with_capacity(n);
         for k in 0..n {
             let mut w = 0.0;
-            for (u, h, c, d) in paths.iter_mut() {
-                let mut v = h.step(u[k]);
-                if let Some(c) = c.as_mut() {
-                    v += c.step(u[k]);
-                }
-                w += match d {
-                    Some(d) => d.step(v),
-                    None => v,
+            for (u, terms, filters) in paths.iter_mut() {
+                let x = u[k];
+                let mut v = match terms.split_first_mut() {
+                    Some((first, rest)) => {
+                        rest.iter_mut().fold(first.step(x), |v, t| v + t.step(x))
+                    }
+                    None => 0.0,
                 };
+                for f in filters.iter_mut() {
+                    v = f.step(v);
+                }
+                w += v;
             }
-            if let Some(c) = creep.as_mut() {
-                w = c.step(w);
-            }
-            if let Some(d) = dynamics.as_mut() {
-                w = d.step(w);
+            for f in filters.iter_mut() {
+                w = f.step(w);
             }
             out.push(w + self.offset);
         }

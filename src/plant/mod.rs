@@ -20,6 +20,6 @@ mod spec;
 
 pub use error::PlantError;
 pub use spec::{
-    OdePlant, OdeSpec, OutputChain, OutputSpec, PathParams, PathSpec, Plant, PlantKind, PlantSpec,
-    Units,
+    EffectSpecs, OdePlant, OdeSpec, OutputChain, OutputSpec, PathParams, PathSpec, Plant,
+    PlantKind, PlantSpec, Units,
 };

@@ -1,10 +1,7 @@
 //! Plant files (`plants/*.json`) and their check into valid plants.
 
 use super::PlantError;
-use crate::effect::creep::{Creep, CreepSpec};
-use crate::effect::dynamics::{Dynamics, DynamicsSpec};
-use crate::effect::hysteresis::{Hysteresis, HysteresisSpec};
-use crate::effect::viscous::{Viscous, ViscousSpec};
+use crate::effect::{registry, Effect, EffectName, EffectParams, EffectSpec, Slot, Spec};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -18,39 +15,260 @@ pub struct Units {
     pub output: String,
 }
 
-/// One path from an input to an output: its hysteresis and, optionally, its own dynamics
-/// (cross paths of a 2-DoF cantilever show both modes).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// One path from an input to an output: the effects on it, each under its name. Terms
+/// (hysteresis, which every path has, and e.g. `viscous`) add up; filters (e.g. `dynamics`:
+/// cross paths of a 2-DoF cantilever show both modes) act on their sum.
+#[derive(Debug, Clone, PartialEq)]
 pub struct PathSpec {
     /// Name of the input (one of the plant's `inputs`).
     pub input: String,
-    pub hysteresis: HysteresisSpec,
-    /// A term c du/dt added to the path (viscous damping), before the path's dynamics.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub viscous: Option<ViscousSpec>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub dynamics: Option<DynamicsSpec>,
+    /// The effects' specs: terms first, then filters, each in registry order.
+    pub effects: Vec<Box<dyn EffectSpec>>,
 }
 
-fn is_zero(x: &f64) -> bool {
-    *x == 0.0
-}
-
-/// One output: the sum of its paths, then creep, then dynamics, plus a constant offset
-/// (a sensor's zero).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// One output: the sum of its paths, then its filters (e.g. creep, then dynamics), plus a
+/// constant offset (a sensor's zero).
+#[derive(Debug, Clone, PartialEq)]
 pub struct OutputSpec {
     pub name: String,
     pub paths: Vec<PathSpec>,
     /// Added to the output (output units; default 0).
-    #[serde(default, skip_serializing_if = "is_zero")]
     pub offset: f64,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub creep: Option<CreepSpec>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub dynamics: Option<DynamicsSpec>,
+    /// The output filters' specs, in registry (chain) order.
+    pub effects: Vec<Box<dyn EffectSpec>>,
+}
+
+/// Canonical order of a list of specs: terms first, then the others, each in registry order.
+fn canonical(specs: &mut [Box<dyn EffectSpec>]) {
+    specs.sort_by_key(|s| {
+        let term = registry::effect(s.effect()).map(|e| e.slot()) == Some(Slot::PathTerm);
+        (!term, s.effect())
+    });
+}
+
+/// Typed access to a list of specs (`path.get::<CreepSpec>()`).
+pub trait EffectSpecs {
+    fn specs(&self) -> &[Box<dyn EffectSpec>];
+    fn specs_mut(&mut self) -> &mut Vec<Box<dyn EffectSpec>>;
+
+    /// The spec of type `T`, if the list has it.
+    fn get<T: Spec>(&self) -> Option<&T> {
+        self.specs()
+            .iter()
+            .find_map(|s| s.as_any().downcast_ref::<T>())
+    }
+    /// The spec of type `T`, mutable.
+    fn get_mut<T: Spec>(&mut self) -> Option<&mut T> {
+        self.specs_mut()
+            .iter_mut()
+            .find_map(|s| s.as_any_mut().downcast_mut::<T>())
+    }
+    /// Set (or replace) the spec of `T`'s effect.
+    fn set<T: Spec>(&mut self, spec: T) {
+        self.remove(T::EFFECT);
+        let v = self.specs_mut();
+        v.push(Box::new(spec));
+        canonical(v);
+    }
+    /// Remove the spec of an effect.
+    fn remove(&mut self, effect: EffectName) -> Option<Box<dyn EffectSpec>> {
+        let v = self.specs_mut();
+        let i = v.iter().position(|s| s.effect() == effect)?;
+        Some(v.remove(i))
+    }
+}
+
+impl EffectSpecs for PathSpec {
+    fn specs(&self) -> &[Box<dyn EffectSpec>] {
+        &self.effects
+    }
+    fn specs_mut(&mut self) -> &mut Vec<Box<dyn EffectSpec>> {
+        &mut self.effects
+    }
+}
+
+impl EffectSpecs for OutputSpec {
+    fn specs(&self) -> &[Box<dyn EffectSpec>] {
+        &self.effects
+    }
+    fn specs_mut(&mut self) -> &mut Vec<Box<dyn EffectSpec>> {
+        &mut self.effects
+    }
+}
+
+impl PathSpec {
+    /// A path from `input` with these effects (put in canonical order).
+    pub fn new(input: String, mut effects: Vec<Box<dyn EffectSpec>>) -> PathSpec {
+        canonical(&mut effects);
+        PathSpec { input, effects }
+    }
+}
+
+impl Serialize for PathSpec {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut m = s.serialize_map(Some(1 + self.effects.len()))?;
+        m.serialize_entry("input", &self.input)?;
+        for e in &self.effects {
+            m.serialize_entry(e.effect().as_str(), e.as_ref())?;
+        }
+        m.end()
+    }
+}
+
+impl Serialize for OutputSpec {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut m = s.serialize_map(None)?;
+        m.serialize_entry("name", &self.name)?;
+        m.serialize_entry("paths", &self.paths)?;
+        if self.offset != 0.0 {
+            m.serialize_entry("offset", &self.offset)?;
+        }
+        for e in &self.effects {
+            m.serialize_entry(e.effect().as_str(), e.as_ref())?;
+        }
+        m.end()
+    }
+}
+
+/// Reads one effect's spec with the effect's own deserializer (errors keep their position).
+struct SpecSeed(&'static dyn Effect);
+
+impl<'de> serde::de::DeserializeSeed<'de> for SpecSeed {
+    type Value = Box<dyn EffectSpec>;
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
+        let mut erased = <dyn erased_serde::Deserializer>::erase(d);
+        self.0
+            .parse_spec(&mut erased)
+            .map_err(serde::de::Error::custom)
+    }
+}
+
+/// The effect of key `key` in a path (`in_path`) or an output, or the serde error that lists
+/// what the object accepts.
+fn effect_of_key<E: serde::de::Error>(
+    key: &str,
+    fixed: &[&str],
+    in_path: bool,
+) -> Result<&'static dyn Effect, E> {
+    let fits = |e: &&'static dyn Effect| match e.slot() {
+        Slot::PathTerm => in_path,
+        Slot::Filter => true,
+        Slot::OutputFilter => !in_path,
+        Slot::None => false,
+    };
+    let all: Vec<&'static dyn Effect> = registry::effects().into_iter().filter(fits).collect();
+    all.iter()
+        .find(|e| e.name().as_str() == key)
+        .copied()
+        .ok_or_else(|| {
+            let expected: Vec<String> = fixed
+                .iter()
+                .map(|f| format!("`{f}`"))
+                .chain(all.iter().map(|e| format!("`{}`", e.name())))
+                .collect();
+            E::custom(format!(
+                "unknown field `{key}`, expected one of {}",
+                expected.join(", ")
+            ))
+        })
+}
+
+impl<'de> Deserialize<'de> for PathSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = PathSpec;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a path: {\"input\": ..., \"hysteresis\": ...}")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut map: A,
+            ) -> Result<PathSpec, A::Error> {
+                use serde::de::Error;
+                let mut input = None;
+                let mut effects: Vec<Box<dyn EffectSpec>> = Vec::new();
+                while let Some(key) = map.next_key::<String>()? {
+                    if key == "input" {
+                        if input.is_some() {
+                            return Err(A::Error::duplicate_field("input"));
+                        }
+                        input = Some(map.next_value::<String>()?);
+                        continue;
+                    }
+                    let e = effect_of_key::<A::Error>(&key, &["input"], true)?;
+                    if effects.iter().any(|s| s.effect() == e.name()) {
+                        return Err(A::Error::duplicate_field(e.name().as_str()));
+                    }
+                    effects.push(map.next_value_seed(SpecSeed(e))?);
+                }
+                let input = input.ok_or_else(|| A::Error::missing_field("input"))?;
+                for e in registry::effects()
+                    .into_iter()
+                    .filter(|e| e.required_in_path())
+                {
+                    if !effects.iter().any(|s| s.effect() == e.name()) {
+                        return Err(A::Error::missing_field(e.name().as_str()));
+                    }
+                }
+                Ok(PathSpec::new(input, effects))
+            }
+        }
+        d.deserialize_map(V)
+    }
+}
+
+impl<'de> Deserialize<'de> for OutputSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = OutputSpec;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("an output: {\"name\": ..., \"paths\": [...]}")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut map: A,
+            ) -> Result<OutputSpec, A::Error> {
+                use serde::de::Error;
+                let (mut name, mut paths, mut offset) = (None, None, None);
+                let mut effects: Vec<Box<dyn EffectSpec>> = Vec::new();
+                while let Some(key) = map.next_key::<String>()? {
+                    match key.as_str() {
+                        "name" if name.is_none() => name = Some(map.next_value::<String>()?),
+                        "paths" if paths.is_none() => {
+                            paths = Some(map.next_value::<Vec<PathSpec>>()?)
+                        }
+                        "offset" if offset.is_none() => offset = Some(map.next_value::<f64>()?),
+                        "name" | "paths" | "offset" => {
+                            return Err(A::Error::custom(format!("duplicate field `{key}`")))
+                        }
+                        _ => {
+                            let e = effect_of_key::<A::Error>(
+                                &key,
+                                &["name", "paths", "offset"],
+                                false,
+                            )?;
+                            if effects.iter().any(|s| s.effect() == e.name()) {
+                                return Err(A::Error::duplicate_field(e.name().as_str()));
+                            }
+                            effects.push(map.next_value_seed(SpecSeed(e))?);
+                        }
+                    }
+                }
+                canonical(&mut effects);
+                Ok(OutputSpec {
+                    name: name.ok_or_else(|| A::Error::missing_field("name"))?,
+                    paths: paths.ok_or_else(|| A::Error::missing_field("paths"))?,
+                    offset: offset.unwrap_or(0.0),
+                    effects,
+                })
+            }
+        }
+        d.deserialize_map(V)
+    }
 }
 
 /// A plant file.
@@ -94,9 +312,10 @@ pub enum OdePlant {
 #[derive(Debug, Clone, PartialEq)]
 pub struct PathParams {
     pub input: usize,
-    pub hysteresis: Hysteresis,
-    pub viscous: Option<Viscous>,
-    pub dynamics: Option<Dynamics>,
+    /// Added up (e.g. hysteresis, viscous damping).
+    pub terms: Vec<Box<dyn EffectParams>>,
+    /// Applied to the sum of the terms, in order (e.g. the path's own dynamics).
+    pub filters: Vec<Box<dyn EffectParams>>,
 }
 
 /// A valid output chain.
@@ -105,8 +324,15 @@ pub struct OutputChain {
     pub name: String,
     pub paths: Vec<PathParams>,
     pub offset: f64,
-    pub creep: Option<Creep>,
-    pub dynamics: Option<Dynamics>,
+    /// Applied to the sum of the paths, in chain order (e.g. creep, then dynamics).
+    pub filters: Vec<Box<dyn EffectParams>>,
+}
+
+impl PathParams {
+    /// Every effect's parameters on the path.
+    pub fn effects(&self) -> impl Iterator<Item = &Box<dyn EffectParams>> {
+        self.terms.iter().chain(&self.filters)
+    }
 }
 
 /// What a plant is made of.
@@ -242,38 +468,49 @@ impl PlantSpec {
                                     ),
                                 )
                             })?;
-                        let hysteresis = path
-                            .hysteresis
-                            .check()
-                            .map_err(|e| effect(format!("{pat}.hysteresis"), e))?;
-                        let dynamics = path
-                            .dynamics
-                            .map(|d| d.check())
-                            .transpose()
-                            .map_err(|e| effect(format!("{pat}.dynamics"), e))?;
-                        let viscous = path
-                            .viscous
-                            .map(|v| v.check())
-                            .transpose()
-                            .map_err(|e| effect(format!("{pat}.viscous"), e))?;
+                        let (mut terms, mut filters) = (Vec::new(), Vec::new());
+                        for e in &path.effects {
+                            let name = e.effect();
+                            let p = e
+                                .check()
+                                .map_err(|err| effect(format!("{pat}.{name}"), err))?;
+                            let slot = registry::effect(name).map(|e| e.slot());
+                            match slot {
+                                Some(Slot::PathTerm) => terms.push(p),
+                                Some(Slot::Filter) => filters.push(p),
+                                _ => {
+                                    return Err(structure(
+                                        &format!("{pat}.{name}"),
+                                        "is not an effect of a path".into(),
+                                    ))
+                                }
+                            }
+                        }
+                        for e in registry::effects()
+                            .into_iter()
+                            .filter(|e| e.required_in_path())
+                        {
+                            if !path.effects.iter().any(|s| s.effect() == e.name()) {
+                                return Err(structure(
+                                    &format!("{pat}.{}", e.name()),
+                                    "every path needs it".into(),
+                                ));
+                            }
+                        }
                         paths.push(PathParams {
                             input,
-                            hysteresis,
-                            viscous,
-                            dynamics,
+                            terms,
+                            filters,
                         });
                     }
-                    let creep = out
-                        .creep
-                        .as_ref()
-                        .map(|c| c.check())
-                        .transpose()
-                        .map_err(|e| effect(format!("{at}.creep"), e))?;
-                    let dynamics = out
-                        .dynamics
-                        .map(|d| d.check())
-                        .transpose()
-                        .map_err(|e| effect(format!("{at}.dynamics"), e))?;
+                    let mut filters = Vec::new();
+                    for e in &out.effects {
+                        let name = e.effect();
+                        filters.push(
+                            e.check()
+                                .map_err(|err| effect(format!("{at}.{name}"), err))?,
+                        );
+                    }
                     if self.outputs[..o].iter().any(|x| x.name == out.name)
                         || self.inputs.contains(&out.name)
                     {
@@ -292,8 +529,7 @@ impl PlantSpec {
                         name: out.name.clone(),
                         paths,
                         offset: out.offset,
-                        creep,
-                        dynamics,
+                        filters,
                     });
                 }
                 PlantKind::Chain(chains)

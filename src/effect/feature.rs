@@ -1,0 +1,118 @@
+//! # Features: basis signals with their numbers fixed
+//!
+//! A NARX model's extra regressors are basis signals whose thresholds, time constants and
+//! frequencies were chosen once (on the training record) and stored, so that the same signal is
+//! recomputed identically on any other record. Each kind of signal belongs to an effect
+//! ([`FeatureKind`], listed by `Effect::feature_kinds`): a play belongs to hysteresis, a
+//! first-order state to creep, a resonator to dynamics, a rate to viscous damping. In a model
+//! file a feature reads `{"play": {"input": 0, "threshold": 0.25}}`.
+
+/// A kind of feature signal: its name, its parameters and how it is computed.
+#[derive(Debug)]
+pub struct FeatureKind {
+    /// The key in a model file (`play`).
+    pub name: &'static str,
+    /// The parameters' names, in order (`threshold`).
+    pub params: &'static [&'static str],
+    /// True when the parameters are valid (finite, in range).
+    pub valid: fn(&[f64]) -> bool,
+    /// A short label from the input's name and the parameters.
+    pub label: fn(&str, &[f64]) -> String,
+    /// The signal from the input, the parameters and the sampling period (s).
+    pub compute: fn(&[f64], &[f64], f64) -> Vec<f64>,
+}
+
+/// One feature: a kind, the input it is computed from (index into the record's inputs) and its
+/// parameters.
+#[derive(Clone)]
+pub struct FeatureSpec {
+    pub kind: &'static FeatureKind,
+    pub input: usize,
+    pub params: Vec<f64>,
+}
+
+impl PartialEq for FeatureSpec {
+    fn eq(&self, other: &Self) -> bool {
+        self.kind.name == other.kind.name
+            && self.input == other.input
+            && self.params == other.params
+    }
+}
+
+impl std::fmt::Debug for FeatureSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} {{ input: {}", self.kind.name, self.input)?;
+        for (n, v) in self.kind.params.iter().zip(&self.params) {
+            write!(f, ", {n}: {v}")?;
+        }
+        f.write_str(" }")
+    }
+}
+
+impl FeatureSpec {
+    /// A feature of `kind` on input `input`.
+    pub fn new(kind: &'static FeatureKind, input: usize, params: Vec<f64>) -> FeatureSpec {
+        FeatureSpec {
+            kind,
+            input,
+            params,
+        }
+    }
+
+    /// The input this signal is computed from.
+    pub fn input(&self) -> usize {
+        self.input
+    }
+
+    /// A short label, e.g. `play(u1, r=4.000)`; `names` are the record's input names.
+    pub fn label(&self, names: &[String]) -> String {
+        let n = names
+            .get(self.input)
+            .cloned()
+            .unwrap_or_else(|| format!("input{}", self.input));
+        (self.kind.label)(&n, &self.params)
+    }
+
+    /// Check the definition against `n_inputs` inputs; the error says what is wrong.
+    pub fn check(&self, n_inputs: usize) -> Result<(), String> {
+        if self.input >= n_inputs {
+            return Err(format!(
+                "feature {self:?} uses input {} of a record with {n_inputs} inputs",
+                self.input
+            ));
+        }
+        if self.params.len() == self.kind.params.len() && (self.kind.valid)(&self.params) {
+            Ok(())
+        } else {
+            Err(format!(
+                "feature {self:?}: parameters must be finite and positive"
+            ))
+        }
+    }
+
+    /// The signal on a record with these inputs and sampling period `ts` (seconds).
+    pub fn compute(&self, inputs: &[&[f64]], ts: f64) -> Vec<f64> {
+        (self.kind.compute)(inputs[self.input], &self.params, ts)
+    }
+}
+
+impl serde::Serialize for FeatureSpec {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        struct Inner<'a>(&'a FeatureSpec);
+        impl serde::Serialize for Inner<'_> {
+            fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                let f = self.0;
+                let mut m = s.serialize_map(Some(1 + f.params.len()))?;
+                m.serialize_entry("input", &f.input)?;
+                for (n, v) in f.kind.params.iter().zip(&f.params) {
+                    m.serialize_entry(n, v)?;
+                }
+                m.end()
+            }
+        }
+        let mut m = s.serialize_map(Some(1))?;
+        m.serialize_entry(self.kind.name, &Inner(self))?;
+        m.end()
+    }
+}

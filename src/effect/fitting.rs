@@ -1,0 +1,185 @@
+//! # What an effect adds to a grey-box model
+//!
+//! The grey-box model of one output is y = F_m[... F_1[sum over paths p of (g_p u_p + terms)]]
+//! plus an offset: each path has a gain column u_p, and the effects that act on a path add **terms**
+//! ([`TermFit`]: columns whose coefficients are solved by (non-negative) least squares, with
+//! nonlinear parameters of their own, e.g. the plays and the Bouc-Wen column of hysteresis, the
+//! rate of viscous damping); the effects that act on the output are linear **filters**
+//! ([`FilterFit`]: creep, dynamics) whose parameters Levenberg-Marquardt moves. An effect may
+//! instead change which inputs drive an output (coupling: `Effect::path_inputs`).
+//!
+//! The fitter (`graybox/`) owns the layout: it asks each part for its columns, parameters,
+//! derivatives and fitted spec, and never names an effect.
+
+use super::spec::EffectSpec;
+use std::borrow::Cow;
+
+/// Finite-difference step in the (transformed) parameter space.
+pub const FD_STEP: f64 = 1e-6;
+/// Transformed parameters are kept in [-LIMIT, LIMIT] (the logistic maps saturate beyond).
+pub const LIMIT: f64 = 30.0;
+
+fn sigmoid(x: f64) -> f64 {
+    1.0 / (1.0 + (-x).exp())
+}
+
+fn logit(p: f64) -> f64 {
+    let p = p.clamp(1e-12, 1.0 - 1e-12);
+    (p / (1.0 - p)).ln()
+}
+
+/// A value in [lo, hi] on a log scale from an unbounded parameter.
+pub fn log_bounded(x: f64, lo: f64, hi: f64) -> f64 {
+    (lo.ln() + (hi.ln() - lo.ln()) * sigmoid(x)).exp()
+}
+
+/// The unbounded parameter of a value in [lo, hi] ([`log_bounded`]'s inverse).
+pub fn log_bounded_inv(v: f64, lo: f64, hi: f64) -> f64 {
+    logit((v.ln() - lo.ln()) / (hi.ln() - lo.ln()))
+}
+
+/// A variant of an effect that the command line can pick instead of the effect's default
+/// (`bouc-wen` for hysteresis).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Variant {
+    /// The name in an effect list (`fit --effects bouc-wen`); the default variant's is the
+    /// effect's own name.
+    pub name: &'static str,
+    /// The name written in a model file (`"hysteresis_operator": "bouc-wen"`).
+    pub file: &'static str,
+    /// Also start the fit from the fit with this (simpler) variant, so that this one is never
+    /// worse than it.
+    pub warm_start: Option<usize>,
+}
+
+/// What a path term is built from.
+#[derive(Debug, Clone, Copy)]
+pub struct PathSetup<'a> {
+    /// The path's input on the training record.
+    pub u: &'a [f64],
+    /// Sampling period in seconds.
+    pub ts: f64,
+    /// The sign of the path's gain in a linear fit of the output (+1 or -1).
+    pub sign: f64,
+    /// Basis size: play operators per Prandtl-Ishlinskii path (smaller in the coarse problem
+    /// of the initialisation).
+    pub plays: usize,
+    /// The variant chosen (index into `Effect::variants`, 0 = the default).
+    pub variant: usize,
+}
+
+/// What an output filter is built from.
+#[derive(Debug, Clone, Copy)]
+pub struct OutputSetup {
+    /// Samples of the training record.
+    pub samples: usize,
+    /// Sampling period in seconds.
+    pub ts: f64,
+    /// The variant chosen.
+    pub variant: usize,
+}
+
+/// One column of a term: the signal and whether its coefficient must be >= 0.
+pub type Column<'a> = (Cow<'a, [f64]>, bool);
+
+/// The fitted term as plant-file specs.
+#[derive(Debug, Default)]
+pub struct TermSpec {
+    /// The spec of the effect on the path (`None`: the term vanished).
+    pub spec: Option<Box<dyn EffectSpec>>,
+    /// Whole extra paths on the same input, written before it (each holding one spec of the
+    /// same effect).
+    pub extra_paths: Vec<Box<dyn EffectSpec>>,
+}
+
+/// A term of one path: columns after the path's gain column.
+pub trait TermFit: Send + Sync {
+    /// Nonlinear parameters (moved by Levenberg-Marquardt).
+    fn n_params(&self) -> usize {
+        0
+    }
+    /// Their names: a warm start copies a term's parameters when the names agree.
+    fn param_names(&self) -> Vec<&'static str> {
+        Vec::new()
+    }
+    /// Joint static starting grid: point i of every term is tried together, on the model
+    /// without the filters that [`FilterFit::off_when_static`] (empty: no grid).
+    fn start_grid(&self) -> Vec<Vec<f64>> {
+        Vec::new()
+    }
+    /// Number of columns (fixed by the setup).
+    fn n_columns(&self) -> usize;
+    /// The columns for parameters `th` (this term's slice).
+    fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>>;
+    /// d/d th_q of sum_k coef_k column_k (before the filters); `cols` are the columns at `th`.
+    fn derivative(&self, _th: &[f64], _q: usize, _cols: &[&[f64]], _coef: &[f64]) -> Vec<f64> {
+        Vec::new()
+    }
+    /// The fitted term: `gain` is the path's gain coefficient, `coef` this term's coefficients.
+    fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec;
+}
+
+/// A filter that works on a signal in place.
+pub type InPlace = Box<dyn Fn(&mut [f64]) + Send + Sync>;
+
+/// A filter applied to a signal in place, or a mark that it cannot be applied.
+pub enum Prepared {
+    /// The filter does nothing at these parameters.
+    Identity,
+    /// The parameters give no valid filter at this sampling period (the columns become NaN).
+    Invalid,
+    /// Apply in place.
+    Apply(InPlace),
+}
+
+/// A linear filter on an output (creep, dynamics).
+pub trait FilterFit: Send + Sync {
+    fn n_params(&self) -> usize;
+    /// Starting parameters.
+    fn initial(&self) -> Vec<f64>;
+    /// Held at their starting values in the first Levenberg-Marquardt stage (slow parameters
+    /// that must wait for the fast ones).
+    fn held_first(&self) -> bool {
+        false
+    }
+    /// Left out of the static model of the initialisation.
+    fn off_when_static(&self) -> bool {
+        false
+    }
+    /// The filter at parameters `th` (this filter's slice).
+    fn prepare(&self, th: &[f64]) -> Prepared;
+    /// d/d th_q of the filter's output for input `x`.
+    fn derivative(&self, th: &[f64], x: &[f64], q: usize) -> Vec<f64>;
+    /// Several starting points from a grid: `cost` scores this filter's parameters on a coarse
+    /// problem; `None` when the filter has no grid.
+    fn starts(
+        &self,
+        _th: &[f64],
+        _cost: &dyn Fn(&[f64]) -> f64,
+        _count: usize,
+    ) -> Option<Vec<Vec<f64>>> {
+        None
+    }
+    /// The fitted filter as a plant-file spec.
+    fn spec(&self, th: &[f64]) -> Box<dyn EffectSpec>;
+}
+
+/// Why a record cannot support an effect of a grey-box model.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RecordError {
+    /// The record is too short.
+    TooShort { needed: usize, why: String },
+    /// An input does not excite the effect.
+    PoorlyExcited { input: String, why: String },
+    /// The effect needs more inputs than the record has.
+    NeedsInputs { needed: usize, why: String },
+}
+
+/// What an effect's record check sees.
+#[derive(Debug, Clone, Copy)]
+pub struct RecordView<'a> {
+    pub input_names: &'a [&'a str],
+    pub inputs: &'a [&'a [f64]],
+    pub samples: usize,
+    pub ts: f64,
+}

@@ -1,0 +1,130 @@
+//! # The `Effect` trait: everything an effect contributes
+//!
+//! One implementation per effect file; the registry (`registry.rs`) lists them. The simulator,
+//! the grey-box fit, the diagnosis and the NARX features ask the effect and never match on its
+//! name. Every method but the name has a default, so that an effect implements only what it
+//! has: a bank for the diagnosis, features for the NARX model, a term or filter for the
+//! grey-box model, a place in plant files.
+
+use super::basis::{BasisBank, BasisContext, EvidenceContext};
+use super::feature::{FeatureKind, FeatureSpec};
+use super::fitting::{
+    FilterFit, OutputSetup, PathSetup, RecordError, RecordView, TermFit, Variant,
+};
+use super::spec::EffectSpec;
+use super::EffectName;
+
+/// Where an effect's spec sits in a plant file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Slot {
+    /// In a path, added to the path's signal (hysteresis, viscous damping).
+    PathTerm,
+    /// In a path or in an output, filtering the signal (dynamics).
+    Filter,
+    /// In an output only, filtering the sum of the paths (creep).
+    OutputFilter,
+    /// Nowhere: the effect is a structure of the plant (coupling: cross paths).
+    None,
+}
+
+/// What a plant's structure looks like, for the effects that are a structure.
+#[derive(Debug, Clone)]
+pub struct StructureView {
+    pub n_inputs: usize,
+    /// Per output, the input index of each path.
+    pub path_inputs: Vec<Vec<usize>>,
+}
+
+/// Everything an effect contributes. See `docs/adding-an-effect.md`.
+pub trait Effect: Send + Sync + 'static {
+    /// The name on the command line, in files and in reports.
+    fn name(&self) -> EffectName;
+    /// One line for `--help` and the docs.
+    fn summary(&self) -> &'static str;
+
+    // --- plant files and simulation ---
+
+    /// Where the spec sits in a plant file (its key is the effect's name).
+    fn slot(&self) -> Slot {
+        Slot::None
+    }
+    /// Every path must have it (hysteresis: a linear path writes `{"linear": ...}`).
+    fn required_in_path(&self) -> bool {
+        false
+    }
+    /// Read the spec from a plant file's value.
+    fn parse_spec(
+        &self,
+        _d: &mut dyn erased_serde::Deserializer<'_>,
+    ) -> Result<Box<dyn EffectSpec>, erased_serde::Error> {
+        Err(serde::de::Error::custom(format!(
+            "the effect `{}` has no parameters in a plant file",
+            self.name()
+        )))
+    }
+    /// For an effect that is a structure: does the plant have it?
+    fn in_structure(&self, _plant: &StructureView) -> bool {
+        false
+    }
+
+    // --- diagnosis ---
+
+    /// The bank of basis signals, or `None` when it does not apply to the record.
+    fn basis(&self, _ctx: &BasisContext) -> Option<BasisBank> {
+        None
+    }
+    /// What in the residual shows this effect (the diagnosis sentence's evidence).
+    fn evidence(&self, _ctx: &EvidenceContext) -> String {
+        format!("its basis explains part of the residual ({})", self.name())
+    }
+
+    // --- NARX features ---
+
+    /// The kinds of feature signal this effect defines.
+    fn feature_kinds(&self) -> &'static [FeatureKind] {
+        &[]
+    }
+    /// The feature definitions for a training record with these inputs.
+    fn features(&self, _inputs: &[&[f64]], _ts: f64) -> Vec<FeatureSpec> {
+        Vec::new()
+    }
+    /// Why a record gives no features (said when `features` is empty).
+    fn no_features(&self) -> &'static str {
+        "too few samples"
+    }
+    /// The NARX protocol's feature selection tries this effect by default.
+    fn narx_candidate(&self) -> bool {
+        false
+    }
+
+    // --- grey-box model ---
+
+    /// Variants the command line can pick (index 0 is the default, named as the effect).
+    fn variants(&self) -> &'static [Variant] {
+        &[]
+    }
+    /// The inputs that drive output `o` when the model has this effect (coupling: all).
+    fn path_inputs(&self, _n_inputs: usize, _o: usize) -> Option<Vec<usize>> {
+        None
+    }
+    /// The term this effect adds to a path.
+    fn term<'a>(&self, _setup: &PathSetup<'a>) -> Option<Box<dyn TermFit + 'a>> {
+        None
+    }
+    /// The filter this effect adds to an output.
+    fn filter(&self, _setup: &OutputSetup) -> Option<Box<dyn FilterFit>> {
+        None
+    }
+    /// The spec of a path without this effect (required effects: a linear gain).
+    fn path_without(&self, _gain: f64) -> Option<Box<dyn EffectSpec>> {
+        None
+    }
+    /// Parameters it adds per path and per output (to size the record it needs).
+    fn parameter_count(&self, _variant: usize, _plays: usize) -> (usize, usize) {
+        (0, 0)
+    }
+    /// Can the record support the effect? (Reversals for hysteresis, holds for creep...)
+    fn check_record(&self, _rec: &RecordView, _variant: usize) -> Result<(), RecordError> {
+        Ok(())
+    }
+}

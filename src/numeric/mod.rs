@@ -1,0 +1,5 @@
+//! # Numerics shared by the modules
+//!
+//! - [`ridge`]: ridge least squares on a few standardised regressors.
+
+pub mod ridge;
