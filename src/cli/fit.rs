@@ -7,15 +7,13 @@ use anyhow::Context;
 use serde_json::{json, Map, Value};
 use std::path::PathBuf;
 
-/// Fit a grey-box model (hysteresis -> creep -> dynamics, + coupling) to a record.
+/// Fit a grey-box model (the chain of the library's effects, free parameters) to a record.
 ///
 /// The model is fitted on the WHOLE record unless --train-fraction is given (then on the first
 /// part, and the scores are on the held-out rest). Scores are those of a free-run simulation of
 /// the fitted model from rest.
 #[derive(Debug, clap::Args)]
-#[command(
-    after_help = "Effects: hysteresis (default operator: Prandtl-Ishlinskii plus one Bouc-Wen term; or name one: prandtl-ishlinskii, bouc-wen), creep, dynamics, coupling, viscous (c du/dt); `none` for a linear static model.\nThe fit uses the whole record (your choice of data) unless --train-fraction F is given.\nExample: hystbench fit --data d.csv --effects hysteresis,creep,dynamics --out model.json"
-)]
+#[command(after_help = super::effects::fit_help())]
 pub struct Args {
     /// Record (CSV with a time column `t`, inputs `u` or `u1,u2..`, outputs `y` or `y1,y2..`).
     #[arg(long)]

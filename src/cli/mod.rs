@@ -10,6 +10,7 @@ pub mod benchmark_mr;
 pub mod compare;
 pub mod demo;
 pub mod diagnose;
+pub mod effects;
 pub mod fit;
 pub mod identify;
 pub mod improve;
@@ -40,7 +41,7 @@ pub enum Command {
     Sweep(sweep::SweepArgs),
     /// Predict a record with a model file (one-step-ahead or free run).
     Predict(predict::PredictArgs),
-    /// Fit a grey-box model (hysteresis, creep, dynamics, coupling, viscous) to a record.
+    /// Fit a grey-box model (the effects of the library, free parameters) to a record.
     Fit(fit::Args),
     /// Compare a model with a record: scores and where it fails.
     Compare(compare::Args),
@@ -52,6 +53,8 @@ pub enum Command {
     Plot(plot::PlotArgs),
     /// Score the NARX and grey-box models on a benchmark (Bouc-Wen; measured MR damper).
     Benchmark(benchmark::Args),
+    /// List the effects of the library (names for fit, identify, plant files).
+    Effects(effects::Args),
     /// Cut a record at its time gaps and resample each part onto a uniform grid.
     Split(split::Args),
 }
@@ -82,6 +85,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Plot(a) => plot::run(a),
         Command::Benchmark(a) => benchmark::run(a),
         Command::Split(a) => split::run(a),
+        Command::Effects(a) => effects::run(a),
     }
 }
 

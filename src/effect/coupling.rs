@@ -79,6 +79,9 @@ impl Effect for CouplingEffect {
             ctx.output, best.0, best.1
         )
     }
+    fn feature_kinds(&self) -> &'static [crate::effect::FeatureKind] {
+        std::slice::from_ref(&super::hysteresis::PLAY)
+    }
     /// With two or more inputs, 4 plays of each input (the other axes' hysteresis; the inputs
     /// themselves are already NARX regressors).
     fn features(&self, inputs: &[&[f64]], _ts: f64) -> Vec<FeatureSpec> {

@@ -346,3 +346,107 @@ impl GreyBoxConfig {
         Ok(model)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::data::Signal;
+
+    /// A record with `m` inputs (sums of two sines with holds, so that every effect's record
+    /// check passes) and `m` outputs that are smooth functions of them.
+    fn record(m: usize, n: usize) -> IoRecord {
+        let ts = 1e-3;
+        let inputs: Vec<Signal> = (0..m)
+            .map(|j| Signal {
+                name: format!("u{}", j + 1),
+                values: (0..n)
+                    .map(|k| {
+                        let t = k as f64 * ts;
+                        let s = 20.0 * (2.3 * t + j as f64).sin() + 6.0 * (11.0 * t).sin();
+                        // a hold in the middle of each second
+                        if k % 1000 > 400 && k % 1000 < 700 {
+                            20.0 * ((2.3 * (k - k % 1000 + 400) as f64 * ts) + j as f64).sin()
+                        } else {
+                            s
+                        }
+                    })
+                    .collect(),
+            })
+            .collect();
+        let outputs = (0..m)
+            .map(|o| Signal {
+                name: format!("y{}", o + 1),
+                values: (0..n)
+                    .map(|k| {
+                        let u: f64 = inputs.iter().map(|s| s.values[k]).sum();
+                        0.8 * u + 0.01 * u * u.abs() + 0.3 * (o as f64 + 1.0)
+                    })
+                    .collect(),
+            })
+            .collect();
+        IoRecord {
+            path: "synthetic.csv".into(),
+            ts,
+            t0: 0.0,
+            time_name: "t".into(),
+            inputs,
+            outputs,
+        }
+    }
+
+    /// The grey-box fitter checks itself: for every effect combination, the analytic (and
+    /// forward-difference) derivatives of the model's output at fixed linear coefficients agree
+    /// with central differences of the whole model, parameter by parameter.
+    #[test]
+    fn derivatives_match_central_differences_for_every_effect_combination() {
+        let cases = [
+            (1, "bouc-wen,creep,dynamics"),
+            (1, "hysteresis,creep,dynamics"),
+            (1, "prandtl-ishlinskii,dynamics,viscous"),
+            (1, "hysteresis,viscous"),
+            (1, "creep"),
+            (2, "hysteresis,dynamics,coupling"),
+            (2, "bouc-wen,creep,coupling,viscous"),
+        ];
+        for (m, effects) in cases {
+            let rec = record(m, 20_000);
+            let mut cfg = GreyBoxConfig::from_effect_list(effects).unwrap();
+            cfg.options.plays = 5;
+            cfg.check_record(&rec).unwrap();
+            let u: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
+            let st = cfg.structure(&rec, 0).unwrap();
+            let prob = OutputProblem::new(
+                "y1",
+                &rec.outputs[0].values,
+                u,
+                rec.input_names(),
+                rec.ts,
+                &st,
+                cfg.options.plays,
+            );
+            assert!(prob.n_theta() > 0, "{effects}");
+            // a point away from zero in every parameter (creep gains, B, Gamma, f_n, zeta)
+            let mut th = prob.initial(&prob, 1).remove(0);
+            for (i, t) in th.iter_mut().enumerate() {
+                *t += 0.05 + 0.01 * i as f64;
+            }
+            let ev = prob.eval(&th, true).expect("a finite model");
+            let analytic = prob.derivatives(&th, &ev.coef);
+            assert_eq!(analytic.len(), prob.n_theta(), "{effects}");
+            for (q, col) in analytic {
+                let h = 1e-4;
+                let (mut a, mut b) = (th.clone(), th.clone());
+                a[q] += h;
+                b[q] -= h;
+                let (ya, yb) = (prob.output_at(&a, &ev.coef), prob.output_at(&b, &ev.coef));
+                let fd: Vec<f64> = ya.iter().zip(&yb).map(|(x, y)| (x - y) / (2.0 * h)).collect();
+                let scale = crate::metrics::rms(&fd).max(1e-12);
+                let err = crate::metrics::rmse(&fd, &col);
+                assert!(
+                    err <= 1e-3 * scale,
+                    "{effects}: parameter {q}: analytic vs central difference differ by {err:.3e} (rms {scale:.3e})"
+                );
+            }
+        }
+    }
+}

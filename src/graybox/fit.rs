@@ -325,52 +325,7 @@ impl<'a> OutputProblem<'a> {
     fn jacobian(&self, th: &[f64], ev: &Eval) -> DMatrix<f64> {
         let n = self.y.len();
         let p = self.layout.n_theta;
-        let (phi, _) = self.basis(th);
-        let prepared = self.prepared(th, true);
-        // the unfiltered sum of the paths
-        let mut w = vec![0.0; n];
-        let last = phi.len() - 1;
-        for (col, &coef) in phi[..last].iter().zip(&ev.coef[..last]) {
-            if coef != 0.0 {
-                for (wv, v) in w.iter_mut().zip(col.iter()) {
-                    *wv += coef * v;
-                }
-            }
-        }
-        let mut jobs: Vec<JacobianJob<'_>> = Vec::new();
-        let prepared = &prepared;
-        for (i, f) in self.layout.filters.iter().enumerate() {
-            if f.params.is_empty() {
-                continue;
-            }
-            // the filter's input: the filters before it applied to the sum of the paths
-            let x = std::sync::Arc::new(apply_chain(&prepared[..i], &w));
-            for q in 0..f.params.len() {
-                let x = x.clone();
-                jobs.push(Box::new(move || {
-                    let d = f.filter.derivative(&th[f.params.clone()], &x, q);
-                    (f.params.start + q, apply_chain(&prepared[i + 1..], &d))
-                }));
-            }
-        }
-        for path in &self.layout.paths {
-            for t in &path.terms {
-                if t.params.is_empty() {
-                    continue;
-                }
-                let cols: Vec<&[f64]> = phi[t.cols.clone()].iter().map(|c| c.as_ref()).collect();
-                let cols = std::sync::Arc::new(cols);
-                for q in 0..t.params.len() {
-                    let cols = cols.clone();
-                    let coef = &ev.coef[t.cols.clone()];
-                    jobs.push(Box::new(move || {
-                        let d = t.term.derivative(&th[t.params.clone()], q, &cols, coef);
-                        (t.params.start + q, apply_chain(prepared, &d))
-                    }));
-                }
-            }
-        }
-        let cols: Vec<(usize, Vec<f64>)> = jobs.par_iter().map(|f| f()).collect();
+        let cols = self.derivatives(th, &ev.coef);
         // projection onto the complement of the passive regressors
         let sol = &ev.sol;
         let cols: Vec<(usize, Vec<f64>)> = cols
@@ -400,6 +355,73 @@ impl<'a> OutputProblem<'a> {
             }
         }
         j
+    }
+
+    /// The model's output at parameters `th` and linear coefficients `coef` (held fixed).
+    #[cfg(test)]
+    pub(crate) fn output_at(&self, th: &[f64], coef: &[f64]) -> Vec<f64> {
+        let (phi, _) = self.basis(th);
+        let prepared = self.prepared(th, true);
+        let last = phi.len() - 1;
+        let mut out = vec![coef[last]; self.y.len()];
+        for (col, &c) in phi[..last].iter().zip(coef) {
+            for (o, v) in out.iter_mut().zip(apply_chain(&prepared, col)) {
+                *o += c * v;
+            }
+        }
+        out
+    }
+
+    /// d yhat / d theta_q at fixed linear coefficients, one column per parameter (before the
+    /// projection): the filters' through the filters after them, the terms' through all.
+    pub(crate) fn derivatives(&self, th: &[f64], coef: &[f64]) -> Vec<(usize, Vec<f64>)> {
+        let n = self.y.len();
+        let (phi, _) = self.basis(th);
+        let prepared = self.prepared(th, true);
+        // the unfiltered sum of the paths
+        let mut w = vec![0.0; n];
+        let last = phi.len() - 1;
+        for (col, &c) in phi[..last].iter().zip(&coef[..last]) {
+            if c != 0.0 {
+                for (wv, v) in w.iter_mut().zip(col.iter()) {
+                    *wv += c * v;
+                }
+            }
+        }
+        let mut jobs: Vec<JacobianJob<'_>> = Vec::new();
+        let prepared = &prepared;
+        for (i, f) in self.layout.filters.iter().enumerate() {
+            if f.params.is_empty() {
+                continue;
+            }
+            // the filter's input: the filters before it applied to the sum of the paths
+            let x = std::sync::Arc::new(apply_chain(&prepared[..i], &w));
+            for q in 0..f.params.len() {
+                let x = x.clone();
+                jobs.push(Box::new(move || {
+                    let d = f.filter.derivative(&th[f.params.clone()], &x, q);
+                    (f.params.start + q, apply_chain(&prepared[i + 1..], &d))
+                }));
+            }
+        }
+        for path in &self.layout.paths {
+            for t in &path.terms {
+                if t.params.is_empty() {
+                    continue;
+                }
+                let cols: Vec<&[f64]> = phi[t.cols.clone()].iter().map(|c| c.as_ref()).collect();
+                let cols = std::sync::Arc::new(cols);
+                for q in 0..t.params.len() {
+                    let cols = cols.clone();
+                    let coef = &coef[t.cols.clone()];
+                    jobs.push(Box::new(move || {
+                        let d = t.term.derivative(&th[t.params.clone()], q, &cols, coef);
+                        (t.params.start + q, apply_chain(prepared, &d))
+                    }));
+                }
+            }
+        }
+        jobs.par_iter().map(|f| f()).collect()
     }
 
     /// This problem's parameters from those of `other` (same filters, other variants of the
