@@ -29,7 +29,11 @@ pub fn fit_help() -> String {
             let v = e.variants();
             if v.len() > 1 {
                 let names: Vec<&str> = v[1..].iter().map(|x| x.name).collect();
-                format!("{} (or one of its operators: {})", e.name(), names.join(", "))
+                format!(
+                    "{} (or one of its operators: {})",
+                    e.name(),
+                    names.join(", ")
+                )
             } else {
                 e.name().to_string()
             }
@@ -71,8 +75,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             "{:<12} {:<22} {:<42} {:<12} {}\n",
             e.name().as_str(),
             place(e.slot()),
-            if ops.is_empty() { "-".to_string() } else { ops.join(", ") },
-            if feats.is_empty() { "-".to_string() } else { feats.join(", ") },
+            if ops.is_empty() {
+                "-".to_string()
+            } else {
+                ops.join(", ")
+            },
+            if feats.is_empty() {
+                "-".to_string()
+            } else {
+                feats.join(", ")
+            },
             e.summary()
         );
     }

@@ -383,6 +383,13 @@ impl Effect for CreepEffect {
     ) -> Result<Box<dyn EffectSpec>, erased_serde::Error> {
         parse_spec::<CreepSpec>(d)
     }
+    /// 2.5 % per decade over 0.3 s to 30 s.
+    fn example(&self) -> Option<Box<dyn EffectSpec>> {
+        Some(Box::new(CreepSpec::from_log_rate(
+            2.5,
+            vec![0.3, 3.0, 30.0],
+        )))
+    }
     fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
         Some(basis(ctx))
     }

@@ -399,6 +399,14 @@ impl Effect for DynamicsEffect {
     ) -> Result<Box<dyn EffectSpec>, erased_serde::Error> {
         parse_spec::<DynamicsSpec>(d)
     }
+    /// A lightly damped 60 Hz mode.
+    fn example(&self) -> Option<Box<dyn EffectSpec>> {
+        Some(Box::new(DynamicsSpec {
+            natural_frequency_hz: 60.0,
+            damping_ratio: 0.04,
+            dc_gain: 1.0,
+        }))
+    }
     fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
         Some(basis(ctx))
     }

@@ -409,6 +409,10 @@ impl Effect for HysteresisEffect {
     ) -> Result<Box<dyn EffectSpec>, erased_serde::Error> {
         parse_spec::<HysteresisSpec>(d)
     }
+    /// A piezo stack's Bouc-Wen loop (PHYSICS.md defaults).
+    fn example(&self) -> Option<Box<dyn EffectSpec>> {
+        Some(Box::new(bouc_wen_term_spec(0.25, 0.018, 0.006, 0.7)))
+    }
     fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
         Some(basis(ctx))
     }

@@ -62,6 +62,11 @@ pub trait Effect: Send + Sync + 'static {
             self.name()
         )))
     }
+    /// A typical spec (for test plants, examples and the effect-matrix test); `None` for an
+    /// effect that is a structure.
+    fn example(&self) -> Option<Box<dyn EffectSpec>> {
+        None
+    }
     /// For an effect that is a structure: does the plant have it?
     fn in_structure(&self, _plant: &StructureView) -> bool {
         false

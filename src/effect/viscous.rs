@@ -189,6 +189,10 @@ impl Effect for ViscousEffect {
     ) -> Result<Box<dyn EffectSpec>, erased_serde::Error> {
         parse_spec::<ViscousSpec>(d)
     }
+    /// A dashpot of 0.003 output units per input unit per second.
+    fn example(&self) -> Option<Box<dyn EffectSpec>> {
+        Some(Box::new(ViscousSpec { coefficient: 0.003 }))
+    }
     fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
         Some(basis(ctx))
     }

@@ -439,7 +439,11 @@ mod tests {
                 a[q] += h;
                 b[q] -= h;
                 let (ya, yb) = (prob.output_at(&a, &ev.coef), prob.output_at(&b, &ev.coef));
-                let fd: Vec<f64> = ya.iter().zip(&yb).map(|(x, y)| (x - y) / (2.0 * h)).collect();
+                let fd: Vec<f64> = ya
+                    .iter()
+                    .zip(&yb)
+                    .map(|(x, y)| (x - y) / (2.0 * h))
+                    .collect();
                 let scale = crate::metrics::rms(&fd).max(1e-12);
                 let err = crate::metrics::rmse(&fd, &col);
                 assert!(
