@@ -3,26 +3,32 @@
 //! Simulate, identify, plot and improve models of hysteretic actuators: piezoelectric stacks,
 //! benders and 2-DoF micromanipulators, MR dampers and other hysteretic devices.
 //!
-//! - [`effect`]: the effect library (hysteresis, creep, dynamics, coupling, noise), written once
-//!   and shared by simulation, grey-box fitting, diagnosis and NARX features;
+//! - [`effect`]: the effect library (hysteresis, creep, dynamics, coupling, viscous), one file
+//!   per effect and one registry, shared by simulation, grey-box fitting, diagnosis and NARX
+//!   features;
 //! - [`plant`]: plant specs (`plants/*.json`), their composition and the ODE plants;
 //! - [`scenario`]: excitations, sampling, noise, seed and split (`scenarios/*.json`);
 //! - [`simulator`]: inputs -> plant -> noise -> record with provenance;
 //! - [`narx`]: the NARX-MLP identifier (one-step and free-run prediction, model files);
 //! - [`graybox`]: grey-box models, compositions of the effects fitted to a record;
 //! - [`diagnose`]: where a model fails and which effect it misses;
+//! - [`improve`]: the model-improvement loop (diagnose, add the effect, refit, repeat);
 //! - [`model`]: any model (plant, grey-box, NARX) behind one trait;
 //! - [`plot`]: figures (PNG, SVG): loops, time, residual loops, parity, spectra, sweeps, ladder;
 //! - [`data`]: records, CSV in and out, atomic writes;
 //! - [`signal`]: FFT and spectra;
-//! - [`metrics`]: R^2, RMSE, NRMSE / fit %, max error, loop measures.
+//! - [`metrics`]: R^2, RMSE, NRMSE / fit %, max error, loop measures;
+//! - [`numeric`]: numerics shared by the modules.
+//!
+//! The command line (`src/cli/`) belongs to the binary; everything it does is reachable from
+//! this library (`docs/library.md`, `examples/simulate_and_fit.rs`).
 
 pub mod benchmark;
-pub mod cli;
 pub mod data;
 pub mod diagnose;
 pub mod effect;
 pub mod graybox;
+pub mod improve;
 pub mod metrics;
 pub mod model;
 pub mod narx;

@@ -2,9 +2,11 @@
 
 use clap::Parser;
 
+mod cli;
+
 fn main() -> std::process::ExitCode {
-    let cli = hystbench::cli::Cli::parse();
-    match hystbench::cli::run(cli) {
+    let cli = cli::Cli::parse();
+    match cli::run(cli) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             // the whole chain, without repeating a cause that a message already quotes

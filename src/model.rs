@@ -26,6 +26,12 @@ pub enum ModelError {
         found: String,
         known: String,
     },
+    #[error("{model}: the prediction of `{output}` diverged at sample {sample}")]
+    Diverged {
+        model: String,
+        output: String,
+        sample: usize,
+    },
     #[error(transparent)]
     Plant(#[from] PlantError),
     #[error(transparent)]
@@ -168,6 +174,22 @@ impl Model for crate::narx::FittedNarx {
             })
             .collect()
     }
+}
+
+/// The model's free-run prediction of a record, refused when an output is not finite (the
+/// error names the output and the sample).
+pub fn predict_finite(model: &dyn Model, io: &IoRecord) -> Result<Vec<Vec<f64>>, ModelError> {
+    let pred = model.predict(io)?;
+    for (p, name) in pred.iter().zip(io.output_names()) {
+        if let Some(k) = p.iter().position(|v| !v.is_finite()) {
+            return Err(ModelError::Diverged {
+                model: model.describe(),
+                output: name,
+                sample: k,
+            });
+        }
+    }
+    Ok(pred)
 }
 
 /// Read a model file: a plant file, or a model file with a `format` field.

@@ -3,15 +3,15 @@
 //! Trains on the Bouc-Wen benchmark's training record and scores the free run on the two
 //! official tests (multisine in periodic steady state, sine sweep from rest), for the NARX
 //! identifier and the grey-box model (the benchmark's ODE structure, fitted), beside the
-//! published table. See [`crate::benchmark`].
+//! published table. See [`hystbench::benchmark`].
 //!
 //! ## References
 //! - J.P. Noël, M. Schoukens, "Hysteretic benchmark with a dynamic nonlinearity", 2016.
 
-use crate::benchmark::{self, BenchmarkData, BenchmarkError, TestScores, PUBLISHED};
-use crate::data::{IoRecord, Signal};
-use crate::narx::{Lags, Mode, NarxConfig};
 use anyhow::Context;
+use hystbench::benchmark::{self, BenchmarkData, BenchmarkError, TestScores, PUBLISHED};
+use hystbench::data::{IoRecord, Signal};
+use hystbench::narx::{Lags, Mode, NarxConfig};
 use std::path::PathBuf;
 
 /// Which benchmark.

@@ -2,14 +2,16 @@
 //!
 //! Trains the NARX and the grey-box (Spencer's Bouc-Wen model with viscous damping, scheduled
 //! in the coil current) on the 1 ms sine records of the measured MR damper and scores their
-//! free runs on the earthquake record, per current. See [`crate::benchmark::mr_damper`].
+//! free runs on the earthquake record, per current. See [`hystbench::benchmark::mr_damper`].
 //!
 //! ## References
 //! - B. F. Spencer Jr. et al., J. Eng. Mech. 123(3):230-238, 1997.
 
-use crate::benchmark::mr_damper::{self, CurrentScore, MrDamperResult, Structure, NARX_DECIMATION};
-use crate::data::OutputGuard;
 use anyhow::Context;
+use hystbench::benchmark::mr_damper::{
+    self, CurrentScore, MrDamperResult, Structure, NARX_DECIMATION,
+};
+use hystbench::data::OutputGuard;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -159,7 +161,7 @@ fn write_out(r: &MrDamperResult, dir: &Path, force: bool) -> anyhow::Result<()> 
             names.push(format!("F_{}_N", v.name().replace(' ', "_")));
             cols.push(v.predictions[k].clone());
         }
-        let text = crate::data::format_csv(&path, &names, &cols)?;
+        let text = hystbench::data::format_csv(&path, &names, &cols)?;
         guard.stage(&path, text.as_bytes())?;
         if let Some(p) = &r.narx_predictions[k] {
             let path = dir.join(format!("narx_I{i:.1}A.csv"));
@@ -167,7 +169,7 @@ fn write_out(r: &MrDamperResult, dir: &Path, force: bool) -> anyhow::Result<()> 
                 .map(|j| j as f64 * 1e-3 * NARX_DECIMATION as f64)
                 .collect();
             let text =
-                crate::data::format_csv(&path, &["t_s".into(), "F_N".into()], &[t, p.clone()])?;
+                hystbench::data::format_csv(&path, &["t_s".into(), "F_N".into()], &[t, p.clone()])?;
             guard.stage(&path, text.as_bytes())?;
         }
     }

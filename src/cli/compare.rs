@@ -1,9 +1,9 @@
 //! `hystbench compare`: a model against a record: scores and where it fails.
 
-use crate::data::{read_csv, IoRecord};
-use crate::diagnose::compare::{compare, OutputComparison};
-use crate::diagnose::unit_of;
-use crate::model::{load_model, Model};
+use hystbench::data::{read_csv, IoRecord};
+use hystbench::diagnose::compare::{compare, OutputComparison};
+use hystbench::diagnose::unit_of;
+use hystbench::model::{load_model, Model};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -39,16 +39,7 @@ pub fn predict_record(
 
 /// Predict a selected record, refusing a prediction that left the finite range.
 pub fn predict_io(model: &dyn Model, io: &IoRecord) -> anyhow::Result<Vec<Vec<f64>>> {
-    let pred = model.predict(io)?;
-    for (p, name) in pred.iter().zip(io.output_names()) {
-        if let Some(k) = p.iter().position(|v| !v.is_finite()) {
-            anyhow::bail!(
-                "{}: the prediction of `{name}` diverged at sample {k}",
-                model.describe()
-            );
-        }
-    }
-    Ok(pred)
+    Ok(hystbench::model::predict_finite(model, io)?)
 }
 
 /// The comparison as Markdown.
@@ -114,12 +105,12 @@ pub fn write_figures(
     io: &IoRecord,
     pred: &[Vec<f64>],
 ) -> anyhow::Result<Vec<String>> {
-    let mut rec = crate::plot::PlotRecord::from_io("measured", io.clone());
+    let mut rec = hystbench::plot::PlotRecord::from_io("measured", io.clone());
     for (j, p) in pred.iter().enumerate() {
         rec = rec.with_prediction(j, p.clone())?;
     }
     // staged together: all figures or none
-    let paths = crate::plot::report_figures(&rec, dir, "", true)?;
+    let paths = hystbench::plot::report_figures(&rec, dir, "", true)?;
     Ok(paths
         .iter()
         .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().to_string()))
@@ -140,13 +131,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             names.push(format!("{}_hat", s.name));
             cols.push(p.clone());
         }
-        crate::data::write_csv_atomic(&dir.join("prediction.csv"), &names, &cols, true)?;
+        hystbench::data::write_csv_atomic(&dir.join("prediction.csv"), &names, &cols, true)?;
         let figures = write_figures(dir, &io, &pred)?;
         let mut report = format!("{md}## Figures\n\n");
         for f in figures {
             report += &format!("![{f}]({f})\n\n");
         }
-        crate::data::write_atomic(&dir.join("report.md"), report.as_bytes(), true)?;
+        hystbench::data::write_atomic(&dir.join("report.md"), report.as_bytes(), true)?;
         eprintln!("report: {}", dir.join("report.md").display());
     }
     if a.json {

@@ -2,12 +2,12 @@
 //! default scenario, writes the records with their sidecars, and a short summary, into a folder.
 
 use crate::cli::simulate::write_simulation;
-use crate::metrics::{branch_gap, ptp};
-use crate::plant::builtin::BUILTIN;
-use crate::plant::PlantSpec;
-use crate::scenario::ScenarioSpec;
-use crate::simulator::simulate_scenario;
 use anyhow::Context;
+use hystbench::metrics::{branch_gap, ptp};
+use hystbench::plant::builtin::BUILTIN;
+use hystbench::plant::PlantSpec;
+use hystbench::scenario::ScenarioSpec;
+use hystbench::simulator::simulate_scenario;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -65,9 +65,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         write_simulation(&sim, &out, true)?;
         let r = &sim.record;
         let units = &plant.units;
-        let rec = crate::plot::PlotRecord::from_io(plant.name.clone(), r.clone())
+        let rec = hystbench::plot::PlotRecord::from_io(plant.name.clone(), r.clone())
             .with_units(&units.input, &units.output);
-        crate::plot::report_figures(&rec, &records, &format!("{}_", plant.name), true)?;
+        hystbench::plot::report_figures(&rec, &records, &format!("{}_", plant.name), true)?;
         for (o, y) in r.outputs.iter().enumerate() {
             // the direct input of this output (same index, or the only input)
             let u = &r.inputs[o.min(r.inputs.len() - 1)];
@@ -99,12 +99,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ("prandtl_ishlinskii_asymmetric", 0.999),
         ("piezo_2dof", 0.99),
     ] {
-        let rec = crate::data::read_csv(&records.join(format!("{name}.csv")))?;
-        let io = crate::data::IoRecord::from_record(&rec, None, None, true)?;
+        let rec = hystbench::data::read_csv(&records.join(format!("{name}.csv")))?;
+        let io = hystbench::data::IoRecord::from_record(&rec, None, None, true)?;
         let (train, test) = io.split_halves();
         let t = std::time::Instant::now();
         let model =
-            crate::narx::NarxConfig::new(io.input_names(), io.output_names()).fit(&train)?;
+            hystbench::narx::NarxConfig::new(io.input_names(), io.output_names()).fit(&train)?;
         let secs = t.elapsed().as_secs_f64();
         for ev in model.evaluate(&train, &test)? {
             let fr = ev.r2_fr_test;
@@ -131,9 +131,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     eprintln!("3. a record with a hidden effect: compare, diagnose, add it, watch the error fall");
     md += "\n## 3. A hidden effect: diagnose, add, watch the error fall\n\n";
     let hidden = records.join("hidden_creep_piezo.csv");
-    let rec = crate::data::read_csv(&hidden)?;
-    let io = crate::data::IoRecord::from_record(&rec, None, None, true)?;
-    let start = crate::graybox::GreyBoxConfig::from_effect_list("hysteresis,dynamics")?.fit(&io)?;
+    let rec = hystbench::data::read_csv(&hidden)?;
+    let io = hystbench::data::IoRecord::from_record(&rec, None, None, true)?;
+    let start =
+        hystbench::graybox::GreyBoxConfig::from_effect_list("hysteresis,dynamics")?.fit(&io)?;
     let start_file = a.out.join("hidden_start_model.json");
     start.save(&start_file, true)?;
     let improve_dir = a.out.join("improve");
@@ -163,7 +164,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         t0.elapsed().as_secs_f64()
     );
     let report = a.out.join("README.md");
-    crate::data::write_atomic(&report, md.as_bytes(), true)?;
+    hystbench::data::write_atomic(&report, md.as_bytes(), true)?;
     crate::cli::print(&md);
     crate::cli::print(&format!("report: {}", report.display()));
     Ok(())

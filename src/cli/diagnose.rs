@@ -1,8 +1,8 @@
 //! `hystbench diagnose`: which physical effect does the model miss?
 
 use crate::cli::compare::predict_record;
-use crate::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
-use crate::model::load_model;
+use hystbench::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
+use hystbench::model::load_model;
 use std::path::PathBuf;
 
 /// Rank the effects a model lacks by how much of its residual each explains, out of sample.

@@ -1,6 +1,6 @@
 //! `hystbench effects`: the effect library's registry, as every command reads it.
 
-use crate::effect::{effects, Slot};
+use hystbench::effect::{effects, Slot};
 use serde_json::json;
 
 /// List the effects of the library: their names (for `fit --effects`, `identify --features`,

@@ -1,9 +1,9 @@
 //! `hystbench fit`: fit a grey-box model (the simulator's chain with free parameters) to a
 //! record and write the model file.
 
-use crate::data::{check_writable, read_csv, IoRecord};
-use crate::graybox::{FittedGreyBox, GreyBoxConfig};
 use anyhow::Context;
+use hystbench::data::{check_writable, read_csv, IoRecord};
+use hystbench::graybox::{FittedGreyBox, GreyBoxConfig};
 use serde_json::{json, Map, Value};
 use std::path::PathBuf;
 

@@ -1,13 +1,13 @@
 //! `hystbench identify`: fit a NARX-MLP to a record, score it one-step-ahead and in free run on
 //! the training and test parts, and write the model file.
 
-use crate::data::{check_writable, read_csv, write_atomic, IoRecord};
-use crate::effect::EffectName;
-use crate::effect::FeatureSpec;
-use crate::narx::model::OutputEvaluation;
-use crate::narx::{FittedNarx, Interaction, Lags, NarxConfig, OptimizerKind, Protocol};
 use anyhow::Context;
 use clap::Args;
+use hystbench::data::{check_writable, read_csv, write_atomic, IoRecord};
+use hystbench::effect::EffectName;
+use hystbench::effect::FeatureSpec;
+use hystbench::narx::model::OutputEvaluation;
+use hystbench::narx::{FittedNarx, Interaction, Lags, NarxConfig, OptimizerKind, Protocol};
 use std::path::PathBuf;
 
 /// Identify a record with a NARX neural network (one MISO model per output).
@@ -66,7 +66,7 @@ pub struct NetArgs {
     /// How the inputs meet in the network: additive (hidden neurons grouped by input, each
     /// group sees the output lags and its own input; the default) or full (every neuron sees
     /// every input; the default with --protocol study, as in the source study).
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = super::choice::<Interaction>(Interaction::NAMES))]
     pub interaction: Option<Interaction>,
     /// Output lags (default: --lags).
     #[arg(long)]
@@ -78,7 +78,7 @@ pub struct NetArgs {
     #[arg(long, default_value_t = 1)]
     pub delay: usize,
     /// Optimizer of the one-step phase (default: adam; rmsprop with --protocol study).
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = super::choice::<OptimizerKind>(OptimizerKind::NAMES))]
     pub optimizer: Option<OptimizerKind>,
     /// Epochs of the one-step phase.
     #[arg(long, default_value_t = 100)]
@@ -87,7 +87,7 @@ pub struct NetArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// `default`: free-run reliable training; `study`: the source study's one-step training.
-    #[arg(long, value_enum, default_value_t = Protocol::Default)]
+    #[arg(long, value_parser = super::choice::<Protocol>(Protocol::NAMES), default_value = "default")]
     pub protocol: Protocol,
     /// Independent restarts of the default protocol (best free run on validation wins).
     #[arg(long)]
@@ -244,7 +244,7 @@ pub fn feature_specs(names: &[String], train: &IoRecord) -> anyhow::Result<Vec<F
     let inputs: Vec<&[f64]> = train.inputs.iter().map(|s| &s.values[..]).collect();
     let mut specs = Vec::new();
     for e in effects {
-        let Some(effect) = crate::effect::registry::effect(e) else {
+        let Some(effect) = hystbench::effect::registry::effect(e) else {
             continue;
         };
         let f = effect.features(&inputs, train.ts);
@@ -340,8 +340,8 @@ fn run_with(
                     1 + o.ensemble.len(),
                     o.training.ensemble_restarts,
                     match model.config.robust.combine {
-                        crate::narx::config::Combine::Mean => "mean",
-                        crate::narx::config::Combine::Median => "median",
+                        hystbench::narx::config::Combine::Mean => "mean",
+                        hystbench::narx::config::Combine::Median => "median",
                     },
                     if e.diverged_members_test.is_empty() {
                         String::new()

@@ -59,6 +59,16 @@ pub enum Command {
     Split(split::Args),
 }
 
+/// The command-line parser of a library setting that has `NAMES` and `FromStr` (the library
+/// does not depend on clap).
+pub fn choice<T>(names: &'static [&'static str]) -> impl clap::builder::TypedValueParser<Value = T>
+where
+    T: std::str::FromStr<Err = String> + Clone + Send + Sync + 'static,
+{
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(names).try_map(|s| s.parse::<T>())
+}
+
 /// Print to standard output, ending with a newline; a closed pipe (`| head`) is not an error.
 pub fn print(text: &str) {
     use std::io::Write;

@@ -1,7 +1,7 @@
 //! `hystbench plot <kind>`: figures as PNG or SVG (the extension of `--out` picks the format).
 
-use crate::plot::{self, LoopColour, LoopOptions, PlotRecord};
 use clap::{Args, Subcommand, ValueEnum};
+use hystbench::plot::{self, LoopColour, LoopOptions, PlotRecord};
 use std::path::{Path, PathBuf};
 
 /// Draw a figure.
@@ -167,7 +167,7 @@ pub fn run(args: PlotArgs) -> anyhow::Result<()> {
     };
     // fail on the output path before reading any data
     plot::Format::from_path(&out.out)?;
-    crate::data::check_writable(&out.out, out.force)?;
+    hystbench::data::check_writable(&out.out, out.force)?;
     let title = out.title.clone();
     match &args.kind {
         Kind::Loop {

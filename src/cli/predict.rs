@@ -1,9 +1,9 @@
 //! `hystbench predict`: apply a model file to a record, one-step-ahead or in free run.
 
-use crate::data::{check_writable, read_csv, write_csv_atomic, IoRecord};
-use crate::narx::{FittedNarx, Mode};
 use anyhow::bail;
 use clap::Args;
+use hystbench::data::{check_writable, read_csv, write_csv_atomic, IoRecord};
+use hystbench::narx::{FittedNarx, Mode};
 use std::path::PathBuf;
 
 /// Predict a record's outputs with a NARX model file.
@@ -16,7 +16,7 @@ pub struct PredictArgs {
     #[arg(long)]
     pub data: PathBuf,
     /// `free-run` feeds back the model's own outputs; `one-step` uses the measured ones.
-    #[arg(long, value_enum, default_value_t = Mode::FreeRun)]
+    #[arg(long, value_parser = super::choice::<Mode>(Mode::NAMES), default_value = "free-run")]
     pub mode: Mode,
     /// CSV to write: t, inputs, measured outputs if present, `<output>_hat` per output.
     #[arg(long)]
@@ -58,7 +58,7 @@ pub fn run(args: PredictArgs) -> anyhow::Result<()> {
                 args.data.display(),
                 p.name,
                 rec.t0 + k as f64 * rec.ts,
-                crate::narx::model::DIVERGENCE_RANGES
+                hystbench::narx::model::DIVERGENCE_RANGES
             );
         }
     }

@@ -1,11 +1,11 @@
 //! `hystbench simulate`: run a plant on a scenario (or on a recorded input) and write the record
 //! with a JSON sidecar.
 
-use crate::data::{format_csv, read_csv, IoRecord, OutputGuard};
-use crate::plant::Plant;
-use crate::scenario::Scenario;
-use crate::simulator::{simulate_recorded, simulate_scenario, Simulation};
 use anyhow::Context;
+use hystbench::data::{format_csv, read_csv, IoRecord, OutputGuard};
+use hystbench::plant::Plant;
+use hystbench::scenario::Scenario;
+use hystbench::simulator::{simulate_recorded, simulate_scenario, Simulation};
 use std::path::{Path, PathBuf};
 
 /// Simulate a plant and write a synthetic record (CSV + JSON sidecar).
@@ -65,8 +65,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             a.out.display()
         );
     }
-    crate::data::check_writable(&a.out, a.force)?;
-    crate::data::check_writable(&sidecar_path(&a.out), a.force)?;
+    hystbench::data::check_writable(&a.out, a.force)?;
+    hystbench::data::check_writable(&sidecar_path(&a.out), a.force)?;
     let plant = Plant::from_file(&a.plant)?;
     let sim = match (&a.scenario, &a.input) {
         (Some(s), _) => {

@@ -1,7 +1,7 @@
 //! `hystbench split`: cut a record at its time gaps and resample each part onto a uniform grid,
 //! one CSV per part, so that records with logger pauses or jittered time stamps can be used.
 
-use crate::data::{format_csv, read_csv, split_at_gaps, OutputGuard};
+use hystbench::data::{format_csv, read_csv, split_at_gaps, OutputGuard};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -18,7 +18,7 @@ pub struct Args {
     #[arg(long)]
     pub out: PathBuf,
     /// A time step longer than this many median steps is a gap.
-    #[arg(long, default_value_t = crate::data::TimeSteps::GAP)]
+    #[arg(long, default_value_t = hystbench::data::TimeSteps::GAP)]
     pub gap: f64,
     /// Parts with fewer samples are dropped (and listed).
     #[arg(long, default_value_t = 50)]

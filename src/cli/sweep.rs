@@ -3,12 +3,12 @@
 //! laid out like the study's tables.
 
 use super::identify::{load_records, NetArgs};
-use crate::data::{check_writable, OutputGuard};
-use crate::effect::noise::stream_seed;
-use crate::narx::model::OutputEvaluation;
-use crate::narx::NarxConfig;
 use anyhow::Context;
 use clap::Args;
+use hystbench::data::{check_writable, OutputGuard};
+use hystbench::effect::noise::stream_seed;
+use hystbench::narx::model::OutputEvaluation;
+use hystbench::narx::NarxConfig;
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -61,11 +61,11 @@ pub struct SweepNetArgs {
     #[arg(long, default_value_t = 1)]
     pub layers: usize,
     /// How the inputs meet in the network (additive by default, full with --protocol study).
-    #[arg(long, value_enum)]
-    pub interaction: Option<crate::narx::Interaction>,
+    #[arg(long, value_parser = super::choice::<hystbench::narx::Interaction>(hystbench::narx::Interaction::NAMES))]
+    pub interaction: Option<hystbench::narx::Interaction>,
     /// Optimizer (default: adam; rmsprop with --protocol study).
-    #[arg(long, value_enum)]
-    pub optimizer: Option<crate::narx::OptimizerKind>,
+    #[arg(long, value_parser = super::choice::<hystbench::narx::OptimizerKind>(hystbench::narx::OptimizerKind::NAMES))]
+    pub optimizer: Option<hystbench::narx::OptimizerKind>,
     /// Epochs of the one-step phase.
     #[arg(long, default_value_t = 100)]
     pub epochs: usize,
@@ -73,8 +73,8 @@ pub struct SweepNetArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// `default` or `study`.
-    #[arg(long, value_enum, default_value_t = crate::narx::Protocol::Default)]
-    pub protocol: crate::narx::Protocol,
+    #[arg(long, value_parser = super::choice::<hystbench::narx::Protocol>(hystbench::narx::Protocol::NAMES), default_value = "default")]
+    pub protocol: hystbench::narx::Protocol,
     /// Restarts per setting (default protocol).
     #[arg(long)]
     pub restarts: Option<usize>,

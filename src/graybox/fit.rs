@@ -130,16 +130,21 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
 
 /// The prepared filters applied in order to a copy of `x` (NaN when one is invalid).
 fn apply_chain(prepared: &[Prepared], x: &[f64]) -> Vec<f64> {
+    apply_chain_owned(prepared, x.to_vec())
+}
+
+/// The prepared filters applied in order to `x` (NaN when one is invalid).
+fn apply_chain_owned(prepared: &[Prepared], mut x: Vec<f64>) -> Vec<f64> {
     if prepared.iter().any(|p| matches!(p, Prepared::Invalid)) {
-        return vec![f64::NAN; x.len()];
+        x.fill(f64::NAN);
+        return x;
     }
-    let mut out = x.to_vec();
     for p in prepared {
         if let Prepared::Apply(f) = p {
-            f(&mut out);
+            f(&mut x);
         }
     }
-    out
+    x
 }
 
 impl<'a> OutputProblem<'a> {
@@ -400,7 +405,7 @@ impl<'a> OutputProblem<'a> {
                 let x = x.clone();
                 jobs.push(Box::new(move || {
                     let d = f.filter.derivative(&th[f.params.clone()], &x, q);
-                    (f.params.start + q, apply_chain(&prepared[i + 1..], &d))
+                    (f.params.start + q, apply_chain_owned(&prepared[i + 1..], d))
                 }));
             }
         }
@@ -416,7 +421,7 @@ impl<'a> OutputProblem<'a> {
                     let coef = &coef[t.cols.clone()];
                     jobs.push(Box::new(move || {
                         let d = t.term.derivative(&th[t.params.clone()], q, &cols, coef);
-                        (t.params.start + q, apply_chain(prepared, &d))
+                        (t.params.start + q, apply_chain_owned(prepared, d))
                     }));
                 }
             }

@@ -7,8 +7,36 @@ use crate::effect::EffectName;
 use crate::effect::FeatureSpec;
 use serde::{Deserialize, Serialize};
 
+/// A setting named on the command line: its names and how they parse.
+macro_rules! named_setting {
+    ($t:ty, $( $v:ident => $n:literal ),+ $(,)?) => {
+        impl $t {
+            /// The names, as the command line and model files write them.
+            pub const NAMES: &'static [&'static str] = &[$($n),+];
+            /// This setting's name.
+            pub fn as_str(self) -> &'static str {
+                match self { $(Self::$v => $n),+ }
+            }
+        }
+        impl std::str::FromStr for $t {
+            type Err = String;
+            fn from_str(s: &str) -> Result<Self, String> {
+                match s {
+                    $($n => Ok(Self::$v),)+
+                    _ => Err(format!("`{s}`: one of {}", Self::NAMES.join(", "))),
+                }
+            }
+        }
+    };
+}
+pub(crate) use named_setting;
+
+named_setting!(OptimizerKind, Rmsprop => "rmsprop", Adam => "adam");
+named_setting!(Protocol, Default => "default", Study => "study");
+named_setting!(Interaction, Full => "full", Additive => "additive");
+
 /// Gradient method.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum OptimizerKind {
     /// RMSProp (rho 0.9, eps 1e-7, as Keras; the source study's).
@@ -18,7 +46,7 @@ pub enum OptimizerKind {
 }
 
 /// Training protocol.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Protocol {
     /// Reliable free run: linear bypass initialised by least squares, one-step pretraining with
@@ -31,7 +59,7 @@ pub enum Protocol {
 }
 
 /// How the exogenous signals meet inside the network.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Interaction {
     /// Every hidden neuron sees every regressor column (the source study's MLP; the value of

@@ -106,8 +106,10 @@ pub struct FeatureSelection {
     pub chosen: bool,
 }
 
+super::config::named_setting!(Mode, OneStep => "one-step", FreeRun => "free-run");
+
 /// Prediction mode.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Mode {
     /// Measured past outputs in the regressor.
     OneStep,
