@@ -36,8 +36,12 @@ pub enum ModelError {
     Plant(#[from] PlantError),
     #[error(transparent)]
     Data(#[from] DataError),
-    #[error("{0}")]
-    Other(String),
+    #[error(transparent)]
+    GreyBox(#[from] crate::graybox::GreyBoxError),
+    #[error(transparent)]
+    Narx(#[from] crate::narx::NarxError),
+    #[error("the free run of `{output}` diverged at sample {sample} (it left the training range by 5 ranges)")]
+    FreeRunDiverged { output: String, sample: usize },
 }
 
 /// A model that predicts outputs from inputs (free run: only the inputs are used).
@@ -137,8 +141,7 @@ impl Model for crate::graybox::FittedGreyBox {
         crate::graybox::FittedGreyBox::effects(self)
     }
     fn predict(&self, rec: &IoRecord) -> Result<Vec<Vec<f64>>, ModelError> {
-        self.simulate(rec)
-            .map_err(|e| ModelError::Other(e.to_string()))
+        Ok(self.simulate(rec)?)
     }
 }
 
@@ -161,15 +164,14 @@ impl Model for crate::narx::FittedNarx {
     }
     /// Free run from the record's first measured outputs (the model's initial condition).
     fn predict(&self, rec: &IoRecord) -> Result<Vec<Vec<f64>>, ModelError> {
-        let preds = crate::narx::FittedNarx::predict(self, rec, crate::narx::Mode::FreeRun)
-            .map_err(|e| ModelError::Other(e.to_string()))?;
+        let preds = crate::narx::FittedNarx::predict(self, rec, crate::narx::Mode::FreeRun)?;
         preds
             .into_iter()
             .map(|p| match p.diverged_at {
-                Some(k) => Err(ModelError::Other(format!(
-                    "the free run of `{}` diverged at sample {k} (it left the training range by 5 ranges)",
-                    p.name
-                ))),
+                Some(k) => Err(ModelError::FreeRunDiverged {
+                    output: p.name,
+                    sample: k,
+                }),
                 None => Ok(p.values),
             })
             .collect()
@@ -204,14 +206,12 @@ pub fn load_model(path: &Path) -> Result<Box<dyn Model>, ModelError> {
     })?;
     match v.get("format").and_then(|f| f.as_str()) {
         None => Ok(Box::new(PlantSpec::parse(path, &text)?.check(path)?)),
-        Some(crate::graybox::FORMAT) => Ok(Box::new(
-            crate::graybox::FittedGreyBox::parse(path, &text)
-                .map_err(|e| ModelError::Other(e.to_string()))?,
-        )),
-        Some(crate::narx::model::FORMAT) => Ok(Box::new(
-            crate::narx::FittedNarx::from_json(path, &text)
-                .map_err(|e| ModelError::Other(e.to_string()))?,
-        )),
+        Some(crate::graybox::FORMAT) => {
+            Ok(Box::new(crate::graybox::FittedGreyBox::parse(path, &text)?))
+        }
+        Some(crate::narx::model::FORMAT) => {
+            Ok(Box::new(crate::narx::FittedNarx::from_json(path, &text)?))
+        }
         Some(other) => Err(ModelError::UnknownFormat {
             path: path.to_path_buf(),
             found: other.to_string(),

@@ -5,24 +5,9 @@
 use hystbench::graybox::FittedGreyBox;
 use hystbench::plant::EffectSpecs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_hystbench"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).to_string()
-}
-
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p
-}
+mod common;
+use common::{hystbench as run, stderr, write};
 
 /// A hidden-plant-like 1-DoF: Bouc-Wen (about 12 % hysteresis), 1.5 %/decade creep, 80 Hz mode.
 const PLANT_1: &str = r#"{"name": "p1", "inputs": ["u"], "outputs": [{"name": "y", "offset": 2.0,

@@ -1,22 +1,9 @@
 //! compare, diagnose, improve and demo from the command line: outputs, JSON shapes, bad input.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_hystbench"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+mod common;
+use common::{hystbench as run, root, s};
 
 /// A creep record and two plant files used as models: with and without creep.
 fn setup(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {

@@ -1,23 +1,10 @@
 //! `hystbench simulate` end to end: outputs, provenance, reproducibility and bad input.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_hystbench"))
-}
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn run(args: &[&str]) -> Output {
-    bin().args(args).output().unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).to_string()
-}
+mod common;
+use common::{hystbench as run, root, stderr};
 
 fn simulate(plant: &str, scenario: &Path, out: &Path, extra: &[&str]) -> Output {
     let p = root().join("plants").join(plant);

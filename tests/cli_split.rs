@@ -2,14 +2,9 @@
 //! points to it when such a record is used directly.
 
 use std::path::Path;
-use std::process::Command;
 
-fn hystbench(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_hystbench"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+mod common;
+use common::hystbench;
 
 fn write_record(path: &Path) {
     // 300 samples at 10 ms with +-1 ms jitter, a 2 s pause, 200 more samples

@@ -8,10 +8,9 @@ use hystbench::diagnose::{diagnose, DiagnoseOptions};
 use hystbench::effect::EffectName;
 use hystbench::graybox::GreyBoxConfig;
 use hystbench::model::Model;
-use hystbench::plant::PlantSpec;
-use hystbench::scenario::{NoiseLevel, ScenarioSpec};
-use hystbench::simulator::simulate_scenario;
-use std::path::Path;
+
+mod common;
+use common::record;
 
 const SISO: &str = r#"{"name":"hidden","inputs":["u"],"outputs":[{"name":"y","paths":[{"input":"u",
   "hysteresis":{"bouc_wen":{"d":0.7,"A":0.25,"B":0.018,"Gamma":0.006}}}],
@@ -22,16 +21,6 @@ const SCENARIO: &str = r#"{"name":"s","sampling_period_s":0.001,"samples":40000,
  "inputs":[{"concat":[
    {"duration_s":20,"excitation":{"sum":[{"sine":{"amplitude":22,"frequency_hz":0.9}},{"sine":{"amplitude":8,"frequency_hz":4.3}},{"random_steps":{"amplitude":6,"min_hold_s":0.05,"max_hold_s":0.4}}]}},
    {"duration_s":20,"excitation":{"staircase":{"levels":[25,-10,30,5],"hold_s":5}}}]}]}"#;
-
-fn record(plant: &str, scenario: &str, noise: f64) -> IoRecord {
-    let p = Path::new("hidden.json");
-    let plant = PlantSpec::parse(p, plant).unwrap().check(p).unwrap();
-    let mut s = ScenarioSpec::parse(p, scenario).unwrap();
-    s.noise_std = NoiseLevel::All(noise);
-    simulate_scenario(&plant, &s.check(p).unwrap(), None)
-        .unwrap()
-        .record
-}
 
 /// RMS error (mean over outputs) and the diagnosis' missing effect and top rank.
 fn fit_and_diagnose(

@@ -2,16 +2,9 @@
 //! fonts available (FONTCONFIG_FILE pointing nowhere), and the bad inputs.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn hystbench(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_hystbench"))
-        .args(args)
-        .env("FONTCONFIG_FILE", "/nonexistent")
-        .env("FONTCONFIG_PATH", "/nonexistent")
-        .output()
-        .expect("run hystbench")
-}
+mod common;
+use common::hystbench;
 
 fn ok(args: &[&str]) {
     let o = hystbench(args);

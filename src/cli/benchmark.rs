@@ -9,9 +9,11 @@
 //! - J.P. Noël, M. Schoukens, "Hysteretic benchmark with a dynamic nonlinearity", 2016.
 
 use anyhow::Context;
-use hystbench::benchmark::{self, BenchmarkData, BenchmarkError, TestScores, PUBLISHED};
-use hystbench::data::{IoRecord, Signal};
-use hystbench::narx::{Lags, Mode, NarxConfig};
+use hystbench::benchmark::{
+    self, io_record, narx_config, BenchmarkData, BenchmarkError, TestScores, GREYBOX_MAX_ITER,
+    NARX_LAGS, NARX_NEURONS, PUBLISHED,
+};
+use hystbench::narx::Mode;
 use std::path::PathBuf;
 
 /// Which benchmark.
@@ -51,59 +53,6 @@ pub fn default_data_dir(which: Which) -> PathBuf {
         Which::Boucwen => "../shared/data/boucwen-benchmark",
         Which::MrDamper => "../shared/data/mr-damper-utfsm",
     })
-}
-
-/// NARX seed (explicit: same command, same numbers).
-pub const NARX_SEED: u64 = 1;
-/// Grey-box Levenberg-Marquardt iterations at most.
-pub const GREYBOX_MAX_ITER: usize = 40;
-
-fn io_record(name: &str, u: &[f64], y: Option<&[f64]>, ts: f64) -> IoRecord {
-    IoRecord {
-        path: PathBuf::from(name),
-        ts,
-        t0: 0.0,
-        time_name: "t_s".into(),
-        inputs: vec![Signal {
-            name: "u_N".into(),
-            values: u.to_vec(),
-        }],
-        outputs: y
-            .map(|y| {
-                vec![Signal {
-                    name: "y_m".into(),
-                    values: y.to_vec(),
-                }]
-            })
-            .unwrap_or_default(),
-    }
-}
-
-/// NARX lags (output and input) of the command.
-pub const NARX_LAGS: usize = 8;
-/// NARX neurons (one hidden layer).
-pub const NARX_NEURONS: usize = 30;
-
-/// The NARX configuration the command uses: the default protocol (linear bypass, one-step
-/// pretraining, simulation-error training; last 20 % of the training record for validation),
-/// 8 lags, 30 neurons, 2 restarts, up to 1000 simulation-error steps, seed 1. Measured on the
-/// benchmark (multisine / sweep RMS, m): 4 lags 10 neurons 7.7e-5 / 3.5e-5; 6/20 2.4e-5 /
-/// 1.1e-5; 8/30 2.0e-5 / 1.0e-5 (seeds 2, 3: 1.7e-5, 1.8e-5 on the multisine); 10/40 and
-/// 12/60 with 2000 steps 1.6e-5 / 1.5e-5.
-pub fn narx_config() -> NarxConfig {
-    let mut c = NarxConfig::new(vec!["u_N".into()], vec!["y_m".into()]);
-    c.seed = NARX_SEED;
-    c.lags = Lags {
-        output: NARX_LAGS,
-        input: NARX_LAGS,
-        delay: 1,
-    };
-    c.neurons = NARX_NEURONS;
-    c.robust.restarts = Some(2);
-    c.robust.sim_steps = 1000;
-    // the plain NARX, as measured above (no play-feature selection)
-    c.robust.try_features.clear();
-    c
 }
 
 /// Trains the NARX on the training record and scores it.

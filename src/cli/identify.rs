@@ -241,22 +241,7 @@ pub fn feature_specs(names: &[String], train: &IoRecord) -> anyhow::Result<Vec<F
             effects.push(e);
         }
     }
-    let inputs: Vec<&[f64]> = train.inputs.iter().map(|s| &s.values[..]).collect();
-    let mut specs = Vec::new();
-    for e in effects {
-        let Some(effect) = hystbench::effect::registry::effect(e) else {
-            continue;
-        };
-        let f = effect.features(&inputs, train.ts);
-        if f.is_empty() {
-            anyhow::bail!(
-                "--features {e}: no basis signals for this record ({})",
-                effect.no_features()
-            );
-        }
-        specs.extend(f);
-    }
-    Ok(specs)
+    hystbench::narx::features_of(&effects, train).map_err(|e| anyhow::anyhow!("--features {e}"))
 }
 
 /// Run `identify`.

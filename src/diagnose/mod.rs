@@ -142,7 +142,13 @@ pub fn diagnose(
             prediction: yhat,
             ts: rec.ts,
         };
-        let banks: Vec<_> = registry::effects()
+        // a record without inputs has no basis to regress on
+        let effects = if inputs.is_empty() {
+            Vec::new()
+        } else {
+            registry::effects()
+        };
+        let banks: Vec<_> = effects
             .into_iter()
             .filter_map(|effect| effect.basis(&ctx))
             .filter(|b| !b.signals.is_empty())

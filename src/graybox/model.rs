@@ -288,7 +288,7 @@ impl FittedGreyBox {
 
     /// Read and check a model file.
     pub fn load(path: &Path) -> Result<FittedGreyBox, GreyBoxError> {
-        let text = std::fs::read_to_string(path).map_err(|source| GreyBoxError::Read {
+        let text = crate::data::read_text(path).map_err(|source| GreyBoxError::Read {
             path: path.to_path_buf(),
             source,
         })?;
@@ -297,18 +297,13 @@ impl FittedGreyBox {
 
     /// Parse a model file's text; `path` labels the errors.
     pub fn parse(path: &Path, text: &str) -> Result<FittedGreyBox, GreyBoxError> {
-        let json_err = |e: serde_json::Error| GreyBoxError::Json {
+        let json_err = |e: crate::data::JsonPosition| GreyBoxError::Json {
             path: path.to_path_buf(),
-            line: e.line(),
-            column: e.column(),
-            message: e
-                .to_string()
-                .split(" at line")
-                .next()
-                .unwrap_or_default()
-                .to_string(),
+            line: e.line,
+            column: e.column,
+            message: e.message,
         };
-        let v: serde_json::Value = serde_json::from_str(text).map_err(json_err)?;
+        let v: serde_json::Value = crate::data::parse_json(text).map_err(json_err)?;
         match v.get("format") {
             Some(serde_json::Value::String(s)) if s == FORMAT => {}
             other => {
@@ -328,7 +323,7 @@ impl FittedGreyBox {
                 })
             }
         }
-        let file: GreyBoxFile = serde_json::from_str(text).map_err(json_err)?;
+        let file: GreyBoxFile = crate::data::parse_json(text).map_err(json_err)?;
         let plant = file.plant.check(path)?;
         let inconsistent = |field: &str, rule: String| GreyBoxError::Inconsistent {
             path: path.to_path_buf(),

@@ -7,6 +7,30 @@ use crate::effect::EffectName;
 use crate::effect::FeatureSpec;
 use serde::{Deserialize, Serialize};
 
+/// The NARX features of the named effects on a training record, in the order named:
+/// `identify --features hysteresis,creep`.
+pub fn features_of(
+    effects: &[EffectName],
+    train: &crate::data::IoRecord,
+) -> Result<Vec<FeatureSpec>, NarxError> {
+    let inputs: Vec<&[f64]> = train.inputs.iter().map(|s| &s.values[..]).collect();
+    let mut specs: Vec<FeatureSpec> = Vec::new();
+    for &e in effects {
+        let Some(effect) = crate::effect::registry::effect(e) else {
+            continue;
+        };
+        let f = effect.features(&inputs, train.ts);
+        if f.is_empty() {
+            return Err(NarxError::NoFeatures {
+                effect: e.to_string(),
+                why: effect.no_features(),
+            });
+        }
+        specs.extend(f);
+    }
+    Ok(specs)
+}
+
 /// A setting named on the command line: its names and how they parse.
 macro_rules! named_setting {
     ($t:ty, $( $v:ident => $n:literal ),+ $(,)?) => {

@@ -36,6 +36,8 @@ pub enum NarxError {
         "training of output `{output}` produced non-finite weights (learning rate {lr} too large?)"
     )]
     NonFiniteWeights { output: String, lr: f64 },
+    #[error("{effect}: no basis signals for this record ({why})")]
+    NoFeatures { effect: String, why: &'static str },
     #[error("{path}: not a hystbench NARX model file: {why}")]
     NotAModel { path: PathBuf, why: String },
     #[error("{path}: model file version {found} is not supported (this hystbench reads version {supported}); retrain the model with this version")]

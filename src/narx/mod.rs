@@ -29,7 +29,7 @@ pub mod regressors;
 pub mod synthetic;
 pub mod train;
 
-pub use config::{Interaction, NarxConfig, OptimizerKind, Protocol, RobustSettings};
+pub use config::{features_of, Interaction, NarxConfig, OptimizerKind, Protocol, RobustSettings};
 pub use error::NarxError;
 pub use model::{FittedNarx, Mode, OutputPrediction};
 pub use regressors::Lags;

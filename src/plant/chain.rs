@@ -96,7 +96,7 @@ impl Plant {
                 .collect(),
             PlantKind::Ode(OdePlant::BoucWenBenchmark(p)) => Ok(vec![p
                 .simulate(inputs[0], ts, false)
-                .map_err(|e| PlantError::Ode(e.to_string()))?]),
+                .map_err(PlantError::Ode)?]),
         }
     }
 

@@ -42,5 +42,5 @@ pub enum PlantError {
         value: f64,
     },
     #[error("ODE plant: {0}")]
-    Ode(String),
+    Ode(#[from] super::ode::OdeError),
 }

@@ -359,25 +359,20 @@ pub struct Plant {
     pub path: PathBuf,
 }
 
-/// Turn a serde_json error into one that names the file, line and column.
-pub(crate) fn json_error(path: &Path, e: serde_json::Error) -> PlantError {
+/// A parse error that names the file, line and column.
+fn json_error(path: &Path, e: crate::data::JsonPosition) -> PlantError {
     PlantError::Json {
         path: path.to_path_buf(),
-        line: e.line(),
-        column: e.column(),
-        message: e
-            .to_string()
-            .split(" at line")
-            .next()
-            .unwrap_or_default()
-            .to_string(),
+        line: e.line,
+        column: e.column,
+        message: e.message,
     }
 }
 
 impl PlantSpec {
     /// Read a plant file.
     pub fn read(path: &Path) -> Result<PlantSpec, PlantError> {
-        let text = std::fs::read_to_string(path).map_err(|source| PlantError::Read {
+        let text = crate::data::read_text(path).map_err(|source| PlantError::Read {
             path: path.to_path_buf(),
             source,
         })?;
@@ -386,7 +381,7 @@ impl PlantSpec {
 
     /// Parse plant JSON; `path` labels the errors.
     pub fn parse(path: &Path, text: &str) -> Result<PlantSpec, PlantError> {
-        serde_json::from_str(text).map_err(|e| json_error(path, e))
+        crate::data::parse_json(text).map_err(|e| json_error(path, e))
     }
 
     /// Check everything; `path` labels the errors.

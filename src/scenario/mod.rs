@@ -77,24 +77,20 @@ pub struct Scenario {
     base_dir: PathBuf,
 }
 
-fn json_error(path: &Path, e: serde_json::Error) -> ScenarioError {
+/// A parse error that names the file, line and column.
+fn json_error(path: &Path, e: crate::data::JsonPosition) -> ScenarioError {
     ScenarioError::Json {
         path: path.to_path_buf(),
-        line: e.line(),
-        column: e.column(),
-        message: e
-            .to_string()
-            .split(" at line")
-            .next()
-            .unwrap_or_default()
-            .to_string(),
+        line: e.line,
+        column: e.column,
+        message: e.message,
     }
 }
 
 impl ScenarioSpec {
     /// Read a scenario file.
     pub fn read(path: &Path) -> Result<ScenarioSpec, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Read {
+        let text = crate::data::read_text(path).map_err(|source| ScenarioError::Read {
             path: path.to_path_buf(),
             source,
         })?;
@@ -103,7 +99,7 @@ impl ScenarioSpec {
 
     /// Parse scenario JSON; `path` labels the errors.
     pub fn parse(path: &Path, text: &str) -> Result<ScenarioSpec, ScenarioError> {
-        serde_json::from_str(text).map_err(|e| json_error(path, e))
+        crate::data::parse_json(text).map_err(|e| json_error(path, e))
     }
 
     /// Check; relative CSV inputs are looked up beside `path`.

@@ -393,10 +393,10 @@ impl BoucWenBenchmark {
             let t0 = i as f64 * ts;
             integrator
                 .advance(&ode, t0, ts, &mut q)
-                .map_err(|message| OdeError::Integration {
+                .map_err(|source| OdeError::Integration {
                     sample: i + 1,
                     time: t0 + ts,
-                    message,
+                    source,
                 })?;
             if !(q.iter().all(|v| v.is_finite()) && q[0].abs() <= limit) {
                 return Err(OdeError::Diverged {

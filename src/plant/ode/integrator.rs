@@ -29,17 +29,32 @@ pub trait DrivenOde<const N: usize> {
     fn rhs(&self, u: f64, x: &SVector<f64, N>) -> SVector<f64, N>;
 }
 
+/// Why an integrator could not advance over an interval.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum IntegratorError {
+    /// The adaptive solver failed (its own reason).
+    #[error("{reason}")]
+    Solver { reason: String },
+    /// The solver returned no output for the interval.
+    #[error("Dopri5 returned no output")]
+    NoOutput,
+    /// The solver stopped before the end of the interval.
+    #[error("Dopri5 stopped at local time {stopped}, not at {end}")]
+    Stopped { stopped: f64, end: f64 },
+}
+
 /// Advances a driven ODE over one interval.
 pub trait Integrator<const N: usize> {
-    /// Integrates `x` from `t0` to `t0 + dt` (absolute times, `dt > 0`). The error is a
-    /// human-readable reason; the caller adds where it happened.
+    /// Integrates `x` from `t0` to `t0 + dt` (absolute times, `dt > 0`); the caller adds where
+    /// an error happened.
     fn advance<S: DrivenOde<N>>(
         &mut self,
         ode: &S,
         t0: f64,
         dt: f64,
         x: &mut SVector<f64, N>,
-    ) -> Result<(), String>;
+    ) -> Result<(), IntegratorError>;
 
     /// Right-hand-side evaluations so far.
     fn evaluations(&self) -> u64;
@@ -70,7 +85,7 @@ impl<const N: usize> Integrator<N> for Rk4Integrator {
         t0: f64,
         dt: f64,
         x: &mut SVector<f64, N>,
-    ) -> Result<(), String> {
+    ) -> Result<(), IntegratorError> {
         let n = self.substeps;
         let h = dt / n as f64;
         let mut u0 = ode.input(t0);
@@ -136,7 +151,7 @@ impl<const N: usize> Integrator<N> for Dopri5Integrator {
         t0: f64,
         dt: f64,
         x: &mut SVector<f64, N>,
-    ) -> Result<(), String> {
+    ) -> Result<(), IntegratorError> {
         let h0 = if self.h_next > 0.0 && self.h_next < dt {
             self.h_next
         } else {
@@ -160,15 +175,18 @@ impl<const N: usize> Integrator<N> for Dopri5Integrator {
             1000,
             OutputType::Sparse,
         );
-        let stats = solver.integrate().map_err(|e| e.to_string())?;
+        let stats = solver.integrate().map_err(|e| IntegratorError::Solver {
+            reason: e.to_string(),
+        })?;
         self.evaluations += stats.num_eval as u64;
         let (ts, ys) = (solver.x_out(), solver.y_out());
-        let last = ys.last().ok_or("Dopri5 returned no output")?;
-        let t_last = *ts.last().ok_or("Dopri5 returned no output")?;
+        let last = ys.last().ok_or(IntegratorError::NoOutput)?;
+        let t_last = *ts.last().ok_or(IntegratorError::NoOutput)?;
         if (t_last - dt).abs() > 1e-9 * dt {
-            return Err(format!(
-                "Dopri5 stopped at local time {t_last}, not at {dt}"
-            ));
+            return Err(IntegratorError::Stopped {
+                stopped: t_last,
+                end: dt,
+            });
         }
         *x = *last;
         // The last step was cut to reach dt; the one before it is a full, accepted step.

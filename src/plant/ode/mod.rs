@@ -33,7 +33,7 @@ pub mod integrator;
 
 pub use bouc_wen_benchmark::IntegratorKind;
 pub use bouc_wen_benchmark::{BoucWenBenchmark, BoucWenBenchmarkSpec};
-pub use integrator::{Dopri5Integrator, DrivenOde, Integrator, Rk4Integrator};
+pub use integrator::{Dopri5Integrator, DrivenOde, Integrator, IntegratorError, Rk4Integrator};
 
 use nalgebra::Complex;
 use serde::{Deserialize, Serialize};
@@ -82,12 +82,12 @@ pub enum OdeError {
     },
     /// The ODE solver gave up.
     #[error(
-        "the integrator failed in the interval ending at sample {sample} (t = {time} s): {message}"
+        "the integrator failed in the interval ending at sample {sample} (t = {time} s): {source}"
     )]
     Integration {
         sample: usize,
         time: f64,
-        message: String,
+        source: IntegratorError,
     },
 }
 
