@@ -101,6 +101,13 @@ mod tests {
     use super::*;
 
     #[test]
+    fn rmse_is_over_the_common_length_and_never_panics() {
+        assert_eq!(rmse(&[1.0, 2.0, 3.0], &[1.0, 2.0]), 0.0);
+        assert_eq!(rmse(&[], &[1.0]), 0.0);
+        assert_eq!(rmse(&[0.0, 0.0], &[3.0, 4.0]), (12.5f64).sqrt());
+    }
+
+    #[test]
     fn perfect_prediction() {
         let y = [1.0, 2.0, 3.0];
         let s = scores(&y, &y);

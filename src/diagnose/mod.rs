@@ -389,3 +389,32 @@ fn describe(
     let evidence = registry::effect(s.effect).map_or_else(String::new, |x| x.evidence(&ctx));
     format!("{}: {evidence}; {change}", s.effect)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::data::Signal;
+
+    /// A record without inputs (an output logged alone) is diagnosed, not a panic: no bank
+    /// applies, and nothing is named.
+    #[test]
+    fn a_record_without_inputs_is_diagnosed_without_panic() {
+        let y: Vec<f64> = (0..500).map(|k| (0.05 * k as f64).sin()).collect();
+        let rec = IoRecord {
+            path: "y.csv".into(),
+            ts: 1e-3,
+            t0: 0.0,
+            time_name: "t".into(),
+            inputs: Vec::new(),
+            outputs: vec![Signal {
+                name: "y".into(),
+                values: y.clone(),
+            }],
+        };
+        let pred = vec![vec![0.0; y.len()]];
+        let d = diagnose(&rec, &pred, &[], &DiagnoseOptions::default());
+        assert_eq!(d.missing, None);
+        assert!(d.ranking.is_empty());
+        assert_eq!(d.outputs.len(), 1);
+    }
+}
