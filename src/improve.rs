@@ -125,6 +125,12 @@ pub enum Progress<'a> {
     Fitting(&'a str),
     /// The candidates of a step and their RMS errors.
     Tried(&'a [(EffectName, f64)]),
+    /// The model chosen at a step, the model of rung `step` (save it here to keep it whatever
+    /// happens later).
+    Chosen {
+        step: usize,
+        model: &'a FittedGreyBox,
+    },
 }
 
 /// The effect list as the command line writes it (`none` when empty).
@@ -281,6 +287,10 @@ pub fn improve(
             break;
         };
         config = chosen;
+        progress(Progress::Chosen {
+            step: step + 1,
+            model: &fitted,
+        });
         fitted_now = Some(fitted.clone());
         model = Box::new(fitted);
     }

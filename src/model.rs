@@ -178,11 +178,18 @@ impl Model for crate::narx::FittedNarx {
     }
 }
 
-/// The model's free-run prediction of a record, refused when an output is not finite (the
-/// error names the output and the sample).
+/// The model's free-run prediction of a record, refused when an output is not finite or stops
+/// short of the record (the error names the output and the sample).
 pub fn predict_finite(model: &dyn Model, io: &IoRecord) -> Result<Vec<Vec<f64>>, ModelError> {
     let pred = model.predict(io)?;
     for (p, name) in pred.iter().zip(io.output_names()) {
+        if p.len() < io.len() {
+            return Err(ModelError::Diverged {
+                model: model.describe(),
+                output: name,
+                sample: p.len(),
+            });
+        }
         if let Some(k) = p.iter().position(|v| !v.is_finite()) {
             return Err(ModelError::Diverged {
                 model: model.describe(),

@@ -163,7 +163,12 @@ fn check(effect: &dyn Effect) {
         .unwrap()
         .fit(&rec)
         .unwrap();
-    assert!(m.effects().contains(&name), "{name}");
+    // the fitted plant holds the effect (its parameters, or its structure)
+    assert!(
+        plant_effects(&m.plant).contains(&name),
+        "{name}: {:?}",
+        plant_effects(&m.plant)
+    );
     let err = rms_diff(
         &m.predict(&rec).unwrap(),
         &rec.outputs
@@ -191,23 +196,24 @@ fn check(effect: &dyn Effect) {
             }
         }
     }
+    let narx = cfg.fit(&train).unwrap();
+    let back = FittedNarx::from_json(Path::new("n.json"), &narx.to_json()).unwrap();
+    assert_eq!(back.config.features, cfg.features, "{name}");
+    // recomputed from the model file: the same signals as the definitions made on the
+    // training record, bit for bit, and finite
+    let fresh = cfg.features.clone();
+    for (f, g) in back.config.features.iter().zip(&fresh) {
+        let again = f.compute(&tin, train.ts);
+        assert!(again.iter().all(|v| v.is_finite()), "{name}: {f:?}");
+        assert_eq!(again, g.compute(&tin, train.ts), "{name}: {f:?}");
+    }
     assert!(
         effect
             .features(&tin, train.ts)
             .iter()
-            .all(|f| cfg.features.contains(f)),
-        "{name}"
+            .all(|f| back.config.features.contains(f)),
+        "{name}: its own features are in the model file"
     );
-    let narx = cfg.fit(&train).unwrap();
-    let back = FittedNarx::from_json(Path::new("n.json"), &narx.to_json()).unwrap();
-    assert_eq!(back.config.features, cfg.features, "{name}");
-    for f in &back.config.features {
-        assert_eq!(f.compute(&tin, train.ts), f.compute(&tin, train.ts));
-        assert!(
-            f.compute(&tin, train.ts).iter().all(|v| v.is_finite()),
-            "{name}: {f:?}"
-        );
-    }
     let p = back.predict(&test, Mode::FreeRun).unwrap();
     for (o, po) in p.iter().enumerate() {
         let r2 = po.scores(&test.outputs[o].values).and_then(|s| s.r2);

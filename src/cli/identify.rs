@@ -37,8 +37,8 @@ pub struct IdentifyArgs {
     #[command(flatten)]
     pub net: NetArgs,
     /// Effects whose basis signals (computed from the inputs, numbers fixed on the training
-    /// record and stored in the model) are added as extra regressors: hysteresis, creep,
-    /// dynamics, coupling; `none` for the plain network. Without this option the default
+    /// record and stored in the model) are added as extra regressors: any effect that
+    /// `hystbench effects` lists with NARX features; `none` for the plain network. Without this option the default
     /// protocol fits both the plain network and one with hysteresis features (play operators)
     /// and keeps the better free run on the training record's validation part.
     #[arg(long, value_delimiter = ',')]

@@ -41,9 +41,19 @@ pub struct Args {
     pub quiet: bool,
 }
 
-/// Print the loop's progress as it goes (nothing but the stop notice when `quiet`).
-fn show(quiet: bool) -> impl FnMut(Progress) {
+/// Print the loop's progress as it goes (nothing but the stop notice when `quiet`) and save
+/// each chosen model into `out` as soon as it is fitted (the first error is kept in `saved`).
+fn show<'a>(
+    quiet: bool,
+    out: &'a std::path::Path,
+    saved: &'a mut anyhow::Result<()>,
+) -> impl FnMut(Progress) + 'a {
     move |p| match p {
+        Progress::Chosen { step, model } if saved.is_ok() => {
+            *saved = model
+                .save(&out.join(format!("model_{step}.json")), true)
+                .map_err(anyhow::Error::from);
+        }
         Progress::Step {
             step,
             effects,
@@ -82,13 +92,26 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         mut rungs,
         prediction: pred,
         held_out_from: from,
-    } = improve(model, config, &io_all, &opts, &mut show(a.quiet))?;
+    } = {
+        let mut saved = Ok(());
+        let ladder = improve(
+            model,
+            config,
+            &io_all,
+            &opts,
+            &mut show(a.quiet, &a.out, &mut saved),
+        );
+        saved?;
+        ladder?
+    };
     let mut model_file = a.model.display().to_string();
     for r in rungs.iter_mut() {
-        if let Some(m) = &r.model {
-            let path = a.out.join(format!("model_{}.json", r.step));
-            m.save(&path, true)?;
-            model_file = path.display().to_string();
+        if r.model.is_some() {
+            model_file = a
+                .out
+                .join(format!("model_{}.json", r.step))
+                .display()
+                .to_string();
         }
         r.model_file = model_file.clone();
     }

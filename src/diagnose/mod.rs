@@ -126,146 +126,210 @@ pub fn diagnose(
     model_effects: &[EffectName],
     opts: &DiagnoseOptions,
 ) -> Diagnosis {
+    let outputs: Vec<OutputDiagnosis> = (0..rec.outputs.len().min(predictions.len()))
+        .map(|o| diagnose_output(rec, o, &predictions[o], model_effects, opts))
+        .collect();
+    let ranking = pooled_ranking(&outputs, model_effects);
+    // the missing effect overall: the one called missing on the outputs where it explains most
+    let missing = ranking
+        .iter()
+        .map(|r| r.effect)
+        .find(|e| outputs.iter().any(|od| od.missing == Some(*e)));
+    let mut candidates: Vec<EffectName> = ranking
+        .iter()
+        .map(|r| r.effect)
+        .filter(|e| outputs.iter().any(|od| od.candidates.contains(e)))
+        .collect();
+    if let Some(m) = missing {
+        // the named effect first, as on each output
+        candidates.retain(|c| *c != m);
+        candidates.insert(0, m);
+    }
+    let summary = summary(&ranking, missing, &candidates, &outputs, model_effects);
+    Diagnosis {
+        ranking,
+        missing,
+        candidates,
+        outputs,
+        summary,
+    }
+}
+
+/// The banks of every effect for one output (none for a record without inputs).
+fn banks(ctx: &BasisContext) -> Vec<crate::effect::basis::BasisBank> {
+    if ctx.inputs.is_empty() {
+        return Vec::new();
+    }
+    registry::effects()
+        .into_iter()
+        .filter_map(|effect| effect.basis(ctx))
+        .filter(|b| !b.signals.is_empty())
+        .collect()
+}
+
+/// How much of the residual `e` each bank explains out of sample, best first. A present effect
+/// is scored alone (how much of the residual is its misfit); a missing one on top of the
+/// present ones, or of the prediction alone when the present banks extrapolate badly out of
+/// sample.
+fn score_banks(
+    e: &[f64],
+    yhat: &[f64],
+    banks: &[crate::effect::basis::BasisBank],
+    baseline: &[&[f64]],
+    model_effects: &[EffectName],
+) -> Vec<EffectScore> {
+    let mut scores = Vec::new();
+    for bank in banks {
+        let in_model = model_effects.contains(&bank.effect);
+        let cols: Vec<&[f64]> = bank.signals.iter().map(Vec::as_slice).collect();
+        let minimal: &[&[f64]] = &[yhat];
+        let bases: Vec<&[&[f64]]> = if in_model {
+            vec![minimal]
+        } else {
+            vec![baseline, minimal]
+        };
+        if let Some(x) = regression::explained_out_of_sample(e, &bases, &cols) {
+            scores.push(EffectScore {
+                effect: bank.effect,
+                explained: x.fraction,
+                rms_now: x.rms_baseline,
+                rms_after: x.rms_with_bank,
+                in_model,
+            });
+        }
+    }
+    scores.sort_by(|a, b| b.explained.total_cmp(&a.explained));
+    scores
+}
+
+/// Parsimony: a smaller bank that leaves the top bank almost nothing to add (nested
+/// out-of-sample test) names the simpler effect (e.g. a dashpot rather than a mode when the
+/// model is a static gain, whose prediction's lags contain the input's rate). Returns the
+/// simpler effect and what the top bank adds on top of it.
+fn simpler_effect(
+    e: &[f64],
+    m: EffectName,
+    scores: &[EffectScore],
+    banks: &[crate::effect::basis::BasisBank],
+    baseline: &[&[f64]],
+    threshold: f64,
+) -> Option<(EffectName, f64)> {
+    let bank_of = |e: EffectName| banks.iter().find(|b| b.effect == e);
+    let tb = bank_of(m)?;
+    let mut cands: Vec<&EffectScore> = scores
+        .iter()
+        .filter(|s| !s.in_model && s.effect != m && s.explained >= threshold)
+        .filter(|s| bank_of(s.effect).is_some_and(|b| b.signals.len() < tb.signals.len()))
+        .collect();
+    cands.sort_by_key(|s| bank_of(s.effect).map_or(usize::MAX, |b| b.signals.len()));
+    let top_cols: Vec<&[f64]> = tb.signals.iter().map(Vec::as_slice).collect();
+    for c in cands {
+        let Some(cb) = bank_of(c.effect) else {
+            continue;
+        };
+        let mut base = baseline.to_vec();
+        base.extend(cb.signals.iter().map(Vec::as_slice));
+        if let Some(x) = regression::explained_out_of_sample(e, &[&base], &top_cols) {
+            if x.fraction < PARSIMONY {
+                return Some((c.effect, x.fraction));
+            }
+        }
+    }
+    None
+}
+
+/// Diagnosis of output `o` from its prediction `yhat`.
+fn diagnose_output(
+    rec: &IoRecord,
+    o: usize,
+    yhat: &[f64],
+    model_effects: &[EffectName],
+    opts: &DiagnoseOptions,
+) -> OutputDiagnosis {
     let inputs: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
     let named: Vec<(&str, &[f64])> = rec
         .inputs
         .iter()
         .map(|s| (s.name.as_str(), s.values.as_slice()))
         .collect();
-    let mut outputs = Vec::new();
-    for (o, (y, yhat)) in rec.outputs.iter().zip(predictions).enumerate() {
-        let e: Vec<f64> = y.values.iter().zip(yhat).map(|(a, b)| a - b).collect();
-        let direct = o.min(inputs.len().saturating_sub(1));
-        let ctx = BasisContext {
-            inputs: &inputs,
-            direct,
-            prediction: yhat,
-            ts: rec.ts,
-        };
-        // a record without inputs has no basis to regress on
-        let effects = if inputs.is_empty() {
-            Vec::new()
-        } else {
-            registry::effects()
-        };
-        let banks: Vec<_> = effects
-            .into_iter()
-            .filter_map(|effect| effect.basis(&ctx))
-            .filter(|b| !b.signals.is_empty())
-            .collect();
-        // the baseline: the prediction and the banks of the effects the model has, so that a
-        // misfit of a present effect is not taken for a missing one
-        let mut baseline: Vec<&[f64]> = vec![yhat.as_slice()];
-        for b in banks.iter().filter(|b| model_effects.contains(&b.effect)) {
-            baseline.extend(b.signals.iter().map(Vec::as_slice));
-        }
-        let mut scores = Vec::new();
-        for bank in &banks {
-            let in_model = model_effects.contains(&bank.effect);
-            let cols: Vec<&[f64]> = bank.signals.iter().map(Vec::as_slice).collect();
-            // a present effect is scored alone (how much of the residual is its misfit); a
-            // missing one on top of the present ones, or of the prediction alone when the
-            // present banks extrapolate badly out of sample
-            let minimal: &[&[f64]] = &[yhat.as_slice()];
-            let bases: Vec<&[&[f64]]> = if in_model {
-                vec![minimal]
-            } else {
-                vec![&baseline, minimal]
-            };
-            if let Some(x) = regression::explained_out_of_sample(&e, &bases, &cols) {
-                scores.push(EffectScore {
-                    effect: bank.effect,
-                    explained: x.fraction,
-                    rms_now: x.rms_baseline,
-                    rms_after: x.rms_with_bank,
-                    in_model,
-                });
-            }
-        }
-        scores.sort_by(|a, b| b.explained.total_cmp(&a.explained));
-        let w = whiteness(&e, &named, opts.max_lag);
-        let mut candidates: Vec<EffectName> = scores
-            .iter()
-            .filter(|s| !s.in_model && !w.white && s.explained >= opts.threshold)
-            .map(|s| s.effect)
-            .collect();
-        let top = scores.iter().find(|s| !s.in_model);
-        let mut missing = top
-            .filter(|s| candidates.contains(&s.effect))
-            .map(|s| s.effect);
-        // Parsimony: a smaller bank that leaves the top bank almost nothing to add (nested
-        // out-of-sample test) names the simpler effect (e.g. a dashpot rather than a mode when
-        // the model is a static gain, whose prediction's lags contain the input's rate).
-        let mut simpler_than: Option<(EffectName, f64)> = None;
-        if let (Some(m), Some(top)) = (missing, top) {
-            let bank_of = |e: EffectName| banks.iter().find(|b| b.effect == e);
-            if let Some(tb) = bank_of(m) {
-                let mut cands: Vec<&EffectScore> = scores
-                    .iter()
-                    .filter(|s| !s.in_model && s.effect != m && s.explained >= opts.threshold)
-                    .filter(|s| {
-                        bank_of(s.effect).is_some_and(|b| b.signals.len() < tb.signals.len())
-                    })
-                    .collect();
-                cands.sort_by_key(|s| bank_of(s.effect).map_or(usize::MAX, |b| b.signals.len()));
-                let top_cols: Vec<&[f64]> = tb.signals.iter().map(Vec::as_slice).collect();
-                for c in cands {
-                    let Some(cb) = bank_of(c.effect) else {
-                        continue;
-                    };
-                    let mut base = baseline.clone();
-                    base.extend(cb.signals.iter().map(Vec::as_slice));
-                    if let Some(x) = regression::explained_out_of_sample(&e, &[&base], &top_cols) {
-                        if x.fraction < PARSIMONY {
-                            missing = Some(c.effect);
-                            simpler_than = Some((top.effect, x.fraction));
-                            break;
-                        }
-                    }
-                }
-            }
-        }
-        if let Some(m) = missing {
-            // the named effect first among the candidates
-            candidates.retain(|c| *c != m);
-            candidates.insert(0, m);
-        }
-        let unit = unit_of(&y.name);
-        let mut messages = Vec::new();
-        for s in scores.iter().filter(|s| !s.in_model) {
-            let mut msg = describe(rec, o, direct, &e, s, &unit);
-            if let (Some(m), Some((t, f))) = (missing, simpler_than) {
-                if s.effect == m {
-                    let adds = if f > 0.0 {
-                        format!("only {:.1} %", 100.0 * f)
-                    } else {
-                        "nothing".to_string()
-                    };
-                    msg += &format!(
-                        " ({t} explains about as much but adds {adds} on top of {m} out of sample: the simpler effect, the smaller bank, is named)"
-                    );
-                }
-            }
-            messages.push(msg);
-        }
-        outputs.push(OutputDiagnosis {
-            output: y.name.clone(),
-            rms: rms(&e),
-            scores,
-            whiteness: w,
-            missing,
-            candidates,
-            messages,
-        });
+    let y = &rec.outputs[o];
+    let e: Vec<f64> = y.values.iter().zip(yhat).map(|(a, b)| a - b).collect();
+    let direct = o.min(inputs.len().saturating_sub(1));
+    let ctx = BasisContext {
+        inputs: &inputs,
+        direct,
+        prediction: yhat,
+        ts: rec.ts,
+    };
+    let banks = banks(&ctx);
+    // the baseline: the prediction and the banks of the effects the model has, so that a
+    // misfit of a present effect is not taken for a missing one
+    let mut baseline: Vec<&[f64]> = vec![yhat];
+    for b in banks.iter().filter(|b| model_effects.contains(&b.effect)) {
+        baseline.extend(b.signals.iter().map(Vec::as_slice));
     }
-    // pool over outputs
+    let scores = score_banks(&e, yhat, &banks, &baseline, model_effects);
+    let w = whiteness(&e, &named, opts.max_lag);
+    let mut candidates: Vec<EffectName> = scores
+        .iter()
+        .filter(|s| !s.in_model && !w.white && s.explained >= opts.threshold)
+        .map(|s| s.effect)
+        .collect();
+    let top = scores.iter().find(|s| !s.in_model);
+    let mut missing = top
+        .filter(|s| candidates.contains(&s.effect))
+        .map(|s| s.effect);
+    let mut simpler_than: Option<(EffectName, f64)> = None;
+    if let (Some(m), Some(top)) = (missing, top) {
+        if let Some((c, f)) = simpler_effect(&e, m, &scores, &banks, &baseline, opts.threshold) {
+            missing = Some(c);
+            simpler_than = Some((top.effect, f));
+        }
+    }
+    if let Some(m) = missing {
+        // the named effect first among the candidates
+        candidates.retain(|c| *c != m);
+        candidates.insert(0, m);
+    }
+    let unit = unit_of(&y.name);
+    let mut messages = Vec::new();
+    for s in scores.iter().filter(|s| !s.in_model) {
+        let mut msg = describe(rec, o, direct, &e, s, &unit);
+        if let (Some(m), Some((t, f))) = (missing, simpler_than) {
+            if s.effect == m {
+                let adds = if f > 0.0 {
+                    format!("only {:.1} %", 100.0 * f)
+                } else {
+                    "nothing".to_string()
+                };
+                msg += &format!(
+                    " ({t} explains about as much but adds {adds} on top of {m} out of sample: the simpler effect, the smaller bank, is named)"
+                );
+            }
+        }
+        messages.push(msg);
+    }
+    OutputDiagnosis {
+        output: y.name.clone(),
+        rms: rms(&e),
+        scores,
+        whiteness: w,
+        missing,
+        candidates,
+        messages,
+    }
+}
+
+/// The effects the model lacks, ranked over all outputs: 1 - sum SSE(with bank) / sum
+/// SSE(baseline).
+fn pooled_ranking(outputs: &[OutputDiagnosis], model_effects: &[EffectName]) -> Vec<Rank> {
     let mut ranking = Vec::new();
     for effect in registry::effects().into_iter().map(|e| e.name()) {
         if model_effects.contains(&effect) {
             continue;
         }
         let (mut now, mut after, mut n) = (0.0, 0.0, 0usize);
-        for od in &outputs {
+        for od in outputs {
             if let Some(s) = od.scores.iter().find(|s| s.effect == effect) {
                 now += s.rms_now * s.rms_now;
                 after += s.rms_after * s.rms_after;
@@ -282,23 +346,19 @@ pub fn diagnose(
         }
     }
     ranking.sort_by(|a, b| b.explained.total_cmp(&a.explained));
-    // the missing effect overall: the one called missing on the outputs where it explains most
-    let missing = ranking
-        .iter()
-        .map(|r| r.effect)
-        .find(|e| outputs.iter().any(|od| od.missing == Some(*e)));
-    let mut candidates: Vec<EffectName> = ranking
-        .iter()
-        .map(|r| r.effect)
-        .filter(|e| outputs.iter().any(|od| od.candidates.contains(e)))
-        .collect();
-    if let Some(m) = missing {
-        // the named effect first, as on each output
-        candidates.retain(|c| *c != m);
-        candidates.insert(0, m);
-    }
+    ranking
+}
+
+/// What to do, in words.
+fn summary(
+    ranking: &[Rank],
+    missing: Option<EffectName>,
+    candidates: &[EffectName],
+    outputs: &[OutputDiagnosis],
+    model_effects: &[EffectName],
+) -> Vec<String> {
     let mut summary = Vec::new();
-    if let [first, second, ..] = candidates.as_slice() {
+    if let [first, second, ..] = candidates {
         let share = |e: &EffectName| {
             ranking
                 .iter()
@@ -313,7 +373,7 @@ pub fn diagnose(
     }
     match missing {
         Some(m) => {
-            for od in &outputs {
+            for od in outputs {
                 if let Some(msg) = od.messages.iter().find(|t| t.starts_with(m.as_str())) {
                     summary.push(format!("{}: {msg}", od.output));
                 }
@@ -337,13 +397,7 @@ pub fn diagnose(
             });
         }
     }
-    Diagnosis {
-        ranking,
-        missing,
-        candidates,
-        outputs,
-        summary,
-    }
+    summary
 }
 
 /// One sentence about what an effect would change, with its evidence (the effect's own).

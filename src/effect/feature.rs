@@ -70,6 +70,14 @@ impl FeatureSpec {
             .get(self.input)
             .cloned()
             .unwrap_or_else(|| format!("input{}", self.input));
+        if self.params.len() != self.kind.params.len() {
+            return format!(
+                "{}({n}, {} parameters for {})",
+                self.kind.name,
+                self.params.len(),
+                self.kind.params.len()
+            );
+        }
         (self.kind.label)(&n, &self.params)
     }
 
@@ -90,9 +98,16 @@ impl FeatureSpec {
         }
     }
 
-    /// The signal on a record with these inputs and sampling period `ts` (seconds).
+    /// The signal on a record with these inputs and sampling period `ts` (seconds); NaN when
+    /// the definition does not fit the record ([`FeatureSpec::check`] says why).
     pub fn compute(&self, inputs: &[&[f64]], ts: f64) -> Vec<f64> {
-        (self.kind.compute)(inputs[self.input], &self.params, ts)
+        let n = inputs.first().map_or(0, |u| u.len());
+        match inputs.get(self.input) {
+            Some(u) if self.params.len() == self.kind.params.len() => {
+                (self.kind.compute)(u, &self.params, ts)
+            }
+            _ => vec![f64::NAN; n],
+        }
     }
 }
 

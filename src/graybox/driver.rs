@@ -207,61 +207,10 @@ impl GreyBoxConfig {
         let u: Vec<&[f64]> = train.inputs.iter().map(|s| s.values.as_slice()).collect();
         let mut outputs = Vec::new();
         let mut runs = Vec::new();
-        for (o, out) in train.outputs.iter().enumerate() {
-            let st = self.structure(&train, o)?;
-            let t0 = Instant::now();
-            let u = &u;
-            let names = &input_names;
-            let problem = |st: &OutputStructure, plays: usize| {
-                OutputProblem::new(
-                    &out.name,
-                    &out.values,
-                    u.clone(),
-                    names.clone(),
-                    train.ts,
-                    st,
-                    plays,
-                )
-            };
-            let prob = problem(&st, self.options.plays);
-            // a variant that names a warm start also starts from the fit with that (simpler)
-            // variant, so that it is never worse than it
-            let mut extra = Vec::new();
-            let mut iterations = 0;
-            for (i, c) in st.terms.iter().enumerate() {
-                let Some(w) = c
-                    .effect
-                    .variants()
-                    .get(c.variant)
-                    .and_then(|v| v.warm_start)
-                else {
-                    continue;
-                };
-                let mut st_w = st.clone();
-                st_w.terms[i].variant = w;
-                let simple = problem(&st_w, 0);
-                let r = fit_problem(&simple, &problem(&st_w, 0), Vec::new(), &self.options)?;
-                iterations += r.iterations;
-                extra.push(prob.theta_from(&simple, &r.theta));
-            }
-            let res = fit_problem(
-                &prob,
-                &problem(&st, self.options.plays.min(3)),
-                extra,
-                &self.options,
-            )?;
-            let mut res = res;
-            res.iterations += iterations;
-            if std::env::var_os("HYSTBENCH_TRACE").is_some() {
-                eprintln!(
-                    "{}: {:.2} s ({} iterations)",
-                    out.name,
-                    t0.elapsed().as_secs_f64(),
-                    res.iterations
-                );
-            }
-            outputs.push(prob.output_spec(&res.theta, &res.eval.coef));
-            runs.push(res);
+        for o in 0..train.outputs.len() {
+            let (spec, run) = self.fit_output(&train, o, &u, &input_names)?;
+            outputs.push(spec);
+            runs.push(run);
         }
         let spec = PlantSpec {
             name: "greybox".into(),
@@ -294,7 +243,84 @@ impl GreyBoxConfig {
                 scored_on: String::new(),
             },
         };
-        let train_scores = model.scores(rec, 0..n_train)?;
+        model.score(rec, n_train, &runs)?;
+        model.fit.seconds = start.elapsed().as_secs_f64();
+        Ok(model)
+    }
+    /// Fit output `o` of the training record: its problem, the warm starts of the variants that
+    /// name one, the two-stage Levenberg-Marquardt; the fitted output spec and the run.
+    fn fit_output(
+        &self,
+        train: &IoRecord,
+        o: usize,
+        u: &[&[f64]],
+        names: &[String],
+    ) -> Result<(crate::plant::OutputSpec, LmResult), GreyBoxError> {
+        let out = &train.outputs[o];
+        let st = self.structure(train, o)?;
+        let t0 = Instant::now();
+        let problem = |st: &OutputStructure, plays: usize| {
+            OutputProblem::new(
+                &out.name,
+                &out.values,
+                u.to_vec(),
+                names.to_vec(),
+                train.ts,
+                st,
+                plays,
+            )
+        };
+        let prob = problem(&st, self.options.plays);
+        // a variant that names a warm start also starts from the fit with that (simpler)
+        // variant, so that it is never worse than it
+        let mut extra = Vec::new();
+        let mut iterations = 0;
+        for (i, c) in st.terms.iter().enumerate() {
+            let Some(w) = c
+                .effect
+                .variants()
+                .get(c.variant)
+                .and_then(|v| v.warm_start)
+            else {
+                continue;
+            };
+            let mut st_w = st.clone();
+            st_w.terms[i].variant = w;
+            let simple = problem(&st_w, 0);
+            let r = fit_problem(&simple, &problem(&st_w, 0), Vec::new(), &self.options)?;
+            iterations += r.iterations;
+            extra.push(prob.theta_from(&simple, &r.theta));
+        }
+        let mut res = fit_problem(
+            &prob,
+            &problem(&st, self.options.plays.min(3)),
+            extra,
+            &self.options,
+        )?;
+        res.iterations += iterations;
+        if std::env::var_os("HYSTBENCH_TRACE").is_some() {
+            eprintln!(
+                "{}: {:.2} s ({} iterations)",
+                out.name,
+                t0.elapsed().as_secs_f64(),
+                res.iterations
+            );
+        }
+        Ok((prob.output_spec(&res.theta, &res.eval.coef), res))
+    }
+}
+
+impl FittedGreyBox {
+    /// Fill the fit summary: scores of the free-run simulation on the fitted samples and on the
+    /// scored ones (the held-out rest, or the whole record), per output and on average.
+    fn score(
+        &mut self,
+        rec: &IoRecord,
+        n_train: usize,
+        runs: &[LmResult],
+    ) -> Result<(), GreyBoxError> {
+        let n = rec.len();
+        let train_scores = self.scores(rec, 0..n_train)?;
         let (range, scored_on) = if n_train < n {
             (
                 n_train..n,
@@ -303,7 +329,7 @@ impl GreyBoxConfig {
         } else {
             (0..n, "whole record (the samples fitted)".to_string())
         };
-        let scores = model.scores(rec, range)?;
+        let scores = self.scores(rec, range)?;
         let mut per = Vec::new();
         for ((run, s), ts) in runs.iter().zip(&scores).zip(&train_scores) {
             per.push(OutputFit {
@@ -319,7 +345,7 @@ impl GreyBoxConfig {
                 message: run.message.clone(),
             });
         }
-        for (p, name) in per.iter_mut().zip(model.plant.outputs.iter()) {
+        for (p, name) in per.iter_mut().zip(self.plant.outputs.iter()) {
             p.name = name.clone();
         }
         for p in &per {
@@ -332,18 +358,17 @@ impl GreyBoxConfig {
         }
         let k = per.len() as f64;
         let r2s: Vec<f64> = per.iter().filter_map(|p| p.r2).collect();
-        model.fit.rmse = per.iter().map(|p| p.rmse).sum::<f64>() / k;
-        model.fit.r2 = if r2s.is_empty() {
+        self.fit.rmse = per.iter().map(|p| p.rmse).sum::<f64>() / k;
+        self.fit.r2 = if r2s.is_empty() {
             None
         } else {
             Some(r2s.iter().sum::<f64>() / r2s.len() as f64)
         };
-        model.fit.iterations = per.iter().map(|p| p.iterations).sum();
-        model.fit.converged = per.iter().all(|p| p.converged);
-        model.fit.outputs = per;
-        model.fit.scored_on = scored_on;
-        model.fit.seconds = start.elapsed().as_secs_f64();
-        Ok(model)
+        self.fit.iterations = per.iter().map(|p| p.iterations).sum();
+        self.fit.converged = per.iter().all(|p| p.converged);
+        self.fit.outputs = per;
+        self.fit.scored_on = scored_on;
+        Ok(())
     }
 }
 

@@ -110,15 +110,26 @@ impl<'de> Deserialize<'de> for GreyBoxFile {
                 let (mut format, mut version, mut effects) = (None, None, None);
                 let (mut inputs, mut outputs, mut plant, mut fit) = (None, None, None, None);
                 let mut operators: Vec<(EffectName, String)> = Vec::new();
+                fn once<T, E: Error>(
+                    slot: &mut Option<T>,
+                    key: &'static str,
+                    v: T,
+                ) -> Result<(), E> {
+                    if slot.is_some() {
+                        return Err(E::duplicate_field(key));
+                    }
+                    *slot = Some(v);
+                    Ok(())
+                }
                 while let Some(key) = map.next_key::<String>()? {
                     match key.as_str() {
-                        "format" => format = Some(map.next_value()?),
-                        "version" => version = Some(map.next_value()?),
-                        "effects" => effects = Some(map.next_value()?),
-                        "inputs" => inputs = Some(map.next_value()?),
-                        "outputs" => outputs = Some(map.next_value()?),
-                        "plant" => plant = Some(map.next_value()?),
-                        "fit" => fit = Some(map.next_value()?),
+                        "format" => once(&mut format, "format", map.next_value()?)?,
+                        "version" => once(&mut version, "version", map.next_value()?)?,
+                        "effects" => once(&mut effects, "effects", map.next_value()?)?,
+                        "inputs" => once(&mut inputs, "inputs", map.next_value()?)?,
+                        "outputs" => once(&mut outputs, "outputs", map.next_value()?)?,
+                        "plant" => once(&mut plant, "plant", map.next_value()?)?,
+                        "fit" => once(&mut fit, "fit", map.next_value()?)?,
                         k => {
                             let effect = k
                                 .strip_suffix("_operator")
@@ -137,6 +148,9 @@ impl<'de> Deserialize<'de> for GreyBoxFile {
                                     "`{k}` is `{v}`; known: {}",
                                     known.join(", ")
                                 )));
+                            }
+                            if operators.iter().any(|(e, _)| *e == effect.name()) {
+                                return Err(A::Error::custom(format!("duplicate field `{k}`")));
                             }
                             operators.push((effect.name(), v));
                         }
@@ -378,5 +392,20 @@ fn has_null_number(v: &serde_json::Value) -> bool {
         serde_json::Value::Array(a) => a.iter().any(has_null_number),
         serde_json::Value::Object(o) => o.values().any(has_null_number),
         _ => false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A model file with a repeated key is refused (the derived reading did so).
+    #[test]
+    fn repeated_keys_are_refused() {
+        let text = r#"{"format":"hystbench-greybox","version":1,"effects":[],"effects":[],"inputs":[],"outputs":[],"plant":{"name":"x","inputs":["u"]},"fit":{}}"#;
+        let e = FittedGreyBox::parse(Path::new("m.json"), text)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("duplicate field `effects`"), "{e}");
     }
 }

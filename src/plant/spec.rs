@@ -145,6 +145,35 @@ impl<'de> serde::de::DeserializeSeed<'de> for SpecSeed {
     }
 }
 
+/// Reads an effect's spec, or `null` (the effect is absent, as in older plant files).
+struct OptionalSpecSeed(&'static dyn Effect);
+
+impl<'de> serde::de::DeserializeSeed<'de> for OptionalSpecSeed {
+    type Value = Option<Box<dyn EffectSpec>>;
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
+        struct V(&'static dyn Effect);
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = Option<Box<dyn EffectSpec>>;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                write!(f, "the parameters of `{}` or null", self.0.name())
+            }
+            fn visit_none<E: serde::de::Error>(self) -> Result<Self::Value, E> {
+                Ok(None)
+            }
+            fn visit_unit<E: serde::de::Error>(self) -> Result<Self::Value, E> {
+                Ok(None)
+            }
+            fn visit_some<D: serde::Deserializer<'de>>(
+                self,
+                d: D,
+            ) -> Result<Self::Value, D::Error> {
+                serde::de::DeserializeSeed::deserialize(SpecSeed(self.0), d).map(Some)
+            }
+        }
+        d.deserialize_option(V(self.0))
+    }
+}
+
 /// The effect of key `key` in a path (`in_path`) or an output, or the serde error that lists
 /// what the object accepts.
 fn effect_of_key<E: serde::de::Error>(
@@ -158,7 +187,8 @@ fn effect_of_key<E: serde::de::Error>(
         Slot::OutputFilter => !in_path,
         Slot::None => false,
     };
-    let all: Vec<&'static dyn Effect> = registry::effects().into_iter().filter(fits).collect();
+    let mut all: Vec<&'static dyn Effect> = registry::effects().into_iter().filter(fits).collect();
+    all.sort_by_key(|e| e.slot() != Slot::PathTerm);
     all.iter()
         .find(|e| e.name().as_str() == key)
         .copied()
@@ -202,7 +232,7 @@ impl<'de> Deserialize<'de> for PathSpec {
                     if effects.iter().any(|s| s.effect() == e.name()) {
                         return Err(A::Error::duplicate_field(e.name().as_str()));
                     }
-                    effects.push(map.next_value_seed(SpecSeed(e))?);
+                    effects.extend(map.next_value_seed(OptionalSpecSeed(e))?);
                 }
                 let input = input.ok_or_else(|| A::Error::missing_field("input"))?;
                 for e in registry::effects()
@@ -254,7 +284,7 @@ impl<'de> Deserialize<'de> for OutputSpec {
                             if effects.iter().any(|s| s.effect() == e.name()) {
                                 return Err(A::Error::duplicate_field(e.name().as_str()));
                             }
-                            effects.push(map.next_value_seed(SpecSeed(e))?);
+                            effects.extend(map.next_value_seed(OptionalSpecSeed(e))?);
                         }
                     }
                 }
@@ -386,17 +416,20 @@ impl PlantSpec {
 
     /// Check everything; `path` labels the errors.
     pub fn check(&self, path: &Path) -> Result<Plant, PlantError> {
+        // the effects in chain order, whatever order a program put them in
+        let mut spec = self.clone();
+        for out in &mut spec.outputs {
+            canonical(&mut out.effects);
+            for p in &mut out.paths {
+                canonical(&mut p.effects);
+            }
+        }
+        spec.check_canonical(path)
+    }
+
+    fn check_canonical(&self, path: &Path) -> Result<Plant, PlantError> {
         let p = || PathBuf::from(path);
-        let structure = |field: &str, rule: String| PlantError::Structure {
-            path: p(),
-            field: field.to_string(),
-            rule,
-        };
-        let effect = |field: String, source| PlantError::Effect {
-            path: p(),
-            field,
-            source,
-        };
+        let structure = |field: &str, rule: String| structure_error(path, field, rule);
         if self.inputs.is_empty() {
             return Err(structure(
                 "inputs",
@@ -436,99 +469,13 @@ impl PlantSpec {
                         .map_err(|e| structure("ode.bouc_wen_benchmark", e.to_string()))?,
                 ))
             }
-            (None, false) => {
-                let mut chains = Vec::new();
-                for (o, out) in self.outputs.iter().enumerate() {
-                    let at = format!("outputs[{o}]");
-                    if out.paths.is_empty() {
-                        return Err(structure(
-                            &format!("{at}.paths"),
-                            "needs at least one path".into(),
-                        ));
-                    }
-                    let mut paths = Vec::new();
-                    for (k, path) in out.paths.iter().enumerate() {
-                        let pat = format!("{at}.paths[{k}]");
-                        let input = self
-                            .inputs
-                            .iter()
-                            .position(|n| *n == path.input)
-                            .ok_or_else(|| {
-                                structure(
-                                    &format!("{pat}.input"),
-                                    format!(
-                                        "`{}` is not one of the inputs: {}",
-                                        path.input,
-                                        self.inputs.join(", ")
-                                    ),
-                                )
-                            })?;
-                        let (mut terms, mut filters) = (Vec::new(), Vec::new());
-                        for e in &path.effects {
-                            let name = e.effect();
-                            let p = e
-                                .check()
-                                .map_err(|err| effect(format!("{pat}.{name}"), err))?;
-                            let slot = registry::effect(name).map(|e| e.slot());
-                            match slot {
-                                Some(Slot::PathTerm) => terms.push(p),
-                                Some(Slot::Filter) => filters.push(p),
-                                _ => {
-                                    return Err(structure(
-                                        &format!("{pat}.{name}"),
-                                        "is not an effect of a path".into(),
-                                    ))
-                                }
-                            }
-                        }
-                        for e in registry::effects()
-                            .into_iter()
-                            .filter(|e| e.required_in_path())
-                        {
-                            if !path.effects.iter().any(|s| s.effect() == e.name()) {
-                                return Err(structure(
-                                    &format!("{pat}.{}", e.name()),
-                                    "every path needs it".into(),
-                                ));
-                            }
-                        }
-                        paths.push(PathParams {
-                            input,
-                            terms,
-                            filters,
-                        });
-                    }
-                    let mut filters = Vec::new();
-                    for e in &out.effects {
-                        let name = e.effect();
-                        filters.push(
-                            e.check()
-                                .map_err(|err| effect(format!("{at}.{name}"), err))?,
-                        );
-                    }
-                    if self.outputs[..o].iter().any(|x| x.name == out.name)
-                        || self.inputs.contains(&out.name)
-                    {
-                        return Err(structure(
-                            &format!("{at}.name"),
-                            format!("`{}` is repeated", out.name),
-                        ));
-                    }
-                    if !out.offset.is_finite() {
-                        return Err(structure(
-                            &format!("{at}.offset"),
-                            format!("{} must be a finite number", out.offset),
-                        ));
-                    }
-                    chains.push(OutputChain {
-                        name: out.name.clone(),
-                        paths,
-                        offset: out.offset,
-                        filters,
-                    });
-                }
-                PlantKind::Chain(chains)
-            }
+            (None, false) => PlantKind::Chain(
+                self.outputs
+                    .iter()
+                    .enumerate()
+                    .map(|(o, out)| self.check_output(path, o, out))
+                    .collect::<Result<_, _>>()?,
+            ),
         };
         let outputs = match &kind {
             PlantKind::Chain(c) => c.iter().map(|c| c.name.clone()).collect(),
@@ -547,9 +494,243 @@ impl PlantSpec {
     }
 }
 
+impl PlantSpec {
+    /// Check output `o`: its paths, its filters, its name and offset.
+    fn check_output(
+        &self,
+        file: &Path,
+        o: usize,
+        out: &OutputSpec,
+    ) -> Result<OutputChain, PlantError> {
+        let at = format!("outputs[{o}]");
+        if out.paths.is_empty() {
+            return Err(structure_error(
+                file,
+                &format!("{at}.paths"),
+                "needs at least one path".into(),
+            ));
+        }
+        let paths = out
+            .paths
+            .iter()
+            .enumerate()
+            .map(|(k, path)| self.check_path(file, &format!("{at}.paths[{k}]"), path))
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut filters = Vec::new();
+        for (i, e) in out.effects.iter().enumerate() {
+            let name = e.effect();
+            if out.effects[..i].iter().any(|x| x.effect() == name) {
+                return Err(structure_error(
+                    file,
+                    &format!("{at}.{name}"),
+                    "is given twice".into(),
+                ));
+            }
+            if !matches!(
+                registry::effect(name).map(|e| e.slot()),
+                Some(Slot::Filter | Slot::OutputFilter)
+            ) {
+                return Err(structure_error(
+                    file,
+                    &format!("{at}.{name}"),
+                    "is not an effect of an output (put it in a path)".into(),
+                ));
+            }
+            filters.push(
+                e.check()
+                    .map_err(|err| effect_error(file, format!("{at}.{name}"), err))?,
+            );
+        }
+        if self.outputs[..o].iter().any(|x| x.name == out.name) || self.inputs.contains(&out.name) {
+            return Err(structure_error(
+                file,
+                &format!("{at}.name"),
+                format!("`{}` is repeated", out.name),
+            ));
+        }
+        if !out.offset.is_finite() {
+            return Err(structure_error(
+                file,
+                &format!("{at}.offset"),
+                format!("{} must be a finite number", out.offset),
+            ));
+        }
+        Ok(OutputChain {
+            name: out.name.clone(),
+            paths,
+            offset: out.offset,
+            filters,
+        })
+    }
+
+    /// Check one path (`at` names it in errors): its input, its effects, the required ones.
+    fn check_path(&self, file: &Path, at: &str, path: &PathSpec) -> Result<PathParams, PlantError> {
+        let input = self
+            .inputs
+            .iter()
+            .position(|n| *n == path.input)
+            .ok_or_else(|| {
+                structure_error(
+                    file,
+                    &format!("{at}.input"),
+                    format!(
+                        "`{}` is not one of the inputs: {}",
+                        path.input,
+                        self.inputs.join(", ")
+                    ),
+                )
+            })?;
+        let (mut terms, mut filters) = (Vec::new(), Vec::new());
+        for (i, e) in path.effects.iter().enumerate() {
+            let name = e.effect();
+            if path.effects[..i].iter().any(|x| x.effect() == name) {
+                return Err(structure_error(
+                    file,
+                    &format!("{at}.{name}"),
+                    "is given twice".into(),
+                ));
+            }
+            let p = e
+                .check()
+                .map_err(|err| effect_error(file, format!("{at}.{name}"), err))?;
+            match registry::effect(name).map(|e| e.slot()) {
+                Some(Slot::PathTerm) => terms.push(p),
+                Some(Slot::Filter) => filters.push(p),
+                _ => {
+                    return Err(structure_error(
+                        file,
+                        &format!("{at}.{name}"),
+                        "is not an effect of a path".into(),
+                    ))
+                }
+            }
+        }
+        for e in registry::effects()
+            .into_iter()
+            .filter(|e| e.required_in_path())
+        {
+            if !path.effects.iter().any(|s| s.effect() == e.name()) {
+                return Err(structure_error(
+                    file,
+                    &format!("{at}.{}", e.name()),
+                    "every path needs it".into(),
+                ));
+            }
+        }
+        Ok(PathParams {
+            input,
+            terms,
+            filters,
+        })
+    }
+}
+
+fn structure_error(file: &Path, field: &str, rule: String) -> PlantError {
+    PlantError::Structure {
+        path: file.to_path_buf(),
+        field: field.to_string(),
+        rule,
+    }
+}
+
+fn effect_error(file: &Path, field: String, source: crate::effect::EffectError) -> PlantError {
+    PlantError::Effect {
+        path: file.to_path_buf(),
+        field,
+        source,
+    }
+}
+
 impl Plant {
     /// Read and check a plant file.
     pub fn from_file(path: &Path) -> Result<Plant, PlantError> {
         PlantSpec::read(path)?.check(path)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const PATH: &str = r#"{"input":"u","hysteresis":{"linear":{"gain":0.5}}"#;
+
+    fn plant(path_rest: &str, output_rest: &str) -> String {
+        format!(
+            r#"{{"name":"p","inputs":["u"],"outputs":[{{"name":"y","paths":[{PATH}{path_rest}}}]{output_rest}}}]}}"#
+        )
+    }
+
+    fn error(text: &str) -> String {
+        PlantSpec::parse(Path::new("p.json"), text)
+            .map(|_| String::new())
+            .unwrap_or_else(|e| e.to_string())
+    }
+
+    /// The hand-written reading of paths and outputs refuses what the derived one refused.
+    #[test]
+    fn unknown_repeated_missing_and_misplaced_keys_are_refused() {
+        assert!(error(&plant("", "")).is_empty());
+        let e = error(&plant(r#","friction":{}"#, ""));
+        assert!(
+            e.contains("unknown field `friction`") && e.contains("`viscous`"),
+            "{e}"
+        );
+        let e = error(&plant(r#","hysteresis":{"linear":{"gain":1}}"#, ""));
+        assert!(e.contains("duplicate field `hysteresis`"), "{e}");
+        let e = error(
+            r#"{"name":"p","inputs":["u"],"outputs":[{"name":"y","paths":[{"input":"u"}]}]}"#,
+        );
+        assert!(e.contains("missing field `hysteresis`"), "{e}");
+        // creep is an output filter, not a path effect; viscous is not an output effect
+        let e = error(&plant(
+            r#","creep":{"time_constants_s":[1],"gains":[0.1]}"#,
+            "",
+        ));
+        assert!(e.contains("unknown field `creep`"), "{e}");
+        let e = error(&plant("", r#","viscous":{"coefficient":1}"#));
+        assert!(e.contains("unknown field `viscous`"), "{e}");
+        // the position of a nested error is kept (line 3 here)
+        let text = "{\"name\":\"p\",\"inputs\":[\"u\"],\"outputs\":[{\"name\":\"y\",\n\"paths\":[{\"input\":\"u\",\n\"hysteresis\":{\"linear\":{\"gain\":\"x\"}}}]}]}";
+        match PlantSpec::parse(Path::new("p.json"), text) {
+            Err(PlantError::Json { line, .. }) => assert_eq!(line, 3),
+            other => panic!("{other:?}"),
+        }
+        // null means absent, as with the derived reading
+        assert!(error(&plant(r#","viscous":null"#, r#","creep":null"#)).is_empty());
+    }
+
+    /// A plant built in code is checked like a file: a path effect on an output and an effect
+    /// given twice are refused; filters given out of order run in chain order.
+    #[test]
+    fn plants_built_in_code_are_checked_and_put_in_chain_order() {
+        let p = Path::new("p.json");
+        let mut spec = PlantSpec::parse(p, &plant("", "")).unwrap();
+        spec.outputs[0].effects = vec![Box::new(crate::effect::viscous::ViscousSpec {
+            coefficient: 1.0,
+        })];
+        let e = spec.check(p).unwrap_err().to_string();
+        assert!(
+            e.contains("viscous") && e.contains("not an effect of an output"),
+            "{e}"
+        );
+        let dynamics = crate::effect::dynamics::DynamicsSpec {
+            natural_frequency_hz: 20.0,
+            damping_ratio: 0.5,
+            dc_gain: 1.0,
+        };
+        let creep = crate::effect::creep::CreepSpec::from_log_rate(2.0, vec![0.1, 1.0]);
+        spec.outputs[0].effects = vec![Box::new(dynamics), Box::new(dynamics)];
+        let e = spec.check(p).unwrap_err().to_string();
+        assert!(e.contains("given twice"), "{e}");
+        spec.outputs[0].effects = vec![Box::new(dynamics), Box::new(creep.clone())];
+        let swapped = spec.check(p).unwrap();
+        spec.outputs[0].effects = vec![Box::new(creep), Box::new(dynamics)];
+        let ordered = spec.check(p).unwrap();
+        let u: Vec<f64> = (0..400).map(|k| (0.05 * k as f64).sin()).collect();
+        assert_eq!(
+            swapped.simulate(&[&u], 1e-3).unwrap(),
+            ordered.simulate(&[&u], 1e-3).unwrap()
+        );
+        assert_eq!(swapped.spec, ordered.spec);
     }
 }
