@@ -1,5 +1,6 @@
 //! Simulation of chain plants: paths (terms such as hysteresis + viscous, then path filters such
-//! as dynamics) -> sum -> output filters (creep, dynamics) -> + offset, per output.
+//! as dynamics) -> sum -> output filters (creep, dynamics) -> + offset, per output; each
+//! operator runs over the whole signal at once.
 
 use super::{OdePlant, OutputChain, Plant, PlantError, PlantKind};
 use crate::effect::spec::BoxedOperator;
@@ -15,7 +16,7 @@ fn effect_err(plant: &Plant, field: String, source: EffectError) -> PlantError {
 
 impl OutputChain {
     /// Noise-free response of this output to the plant's inputs (`o` is its index, for errors).
-    /// One fused pass per sample: paths, sum, creep, dynamics.
+    /// Each operator runs over the whole signal in turn: paths, sum, creep, dynamics.
     pub fn simulate(
         &self,
         plant: &Plant,
@@ -45,27 +46,33 @@ impl OutputChain {
                     .map_err(|err| effect_err(plant, format!("outputs[{o}].{}", e.effect()), err))
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let mut out = Vec::with_capacity(n);
-        for k in 0..n {
-            let mut w = 0.0;
-            for (u, terms, filters) in paths.iter_mut() {
-                let x = u[k];
-                let mut v = match terms.split_first_mut() {
-                    Some((first, rest)) => {
-                        rest.iter_mut().fold(first.step(x), |v, t| v + t.step(x))
+        // Each operator runs over the whole signal in one call (no virtual call per sample);
+        // the operators do not share state, so this is the per-sample chain, the same bits.
+        let mut w = vec![0.0; n];
+        for (u, terms, filters) in paths.iter_mut() {
+            let mut v = match terms.split_first_mut() {
+                Some((first, rest)) => {
+                    let mut v = first.apply(u);
+                    for t in rest {
+                        for (a, b) in v.iter_mut().zip(t.apply(u)) {
+                            *a += b;
+                        }
                     }
-                    None => 0.0,
-                };
-                for f in filters.iter_mut() {
-                    v = f.step(v);
+                    v
                 }
-                w += v;
-            }
+                None => vec![0.0; n],
+            };
             for f in filters.iter_mut() {
-                w = f.step(w);
+                v = f.apply(&v);
             }
-            out.push(w + self.offset);
+            for (a, b) in w.iter_mut().zip(&v) {
+                *a += b;
+            }
         }
+        for f in filters.iter_mut() {
+            w = f.apply(&w);
+        }
+        let out: Vec<f64> = w.into_iter().map(|v| v + self.offset).collect();
         if let Some((sample, &value)) = out.iter().enumerate().find(|(_, v)| !v.is_finite()) {
             return Err(PlantError::Diverged {
                 output: self.name.clone(),
