@@ -112,6 +112,8 @@ pub trait TermFit: Send + Sync {
     /// The columns for parameters `th` (this term's slice).
     fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>>;
     /// d/d th_q of sum_k coef_k column_k (before the filters); `cols` are the columns at `th`.
+    /// A term with parameters must give it (the default, for terms without parameters, is
+    /// empty); `graybox`'s derivative test checks the built-in terms against central differences.
     fn derivative(&self, _th: &[f64], _q: usize, _cols: &[&[f64]], _coef: &[f64]) -> Vec<f64> {
         Vec::new()
     }
