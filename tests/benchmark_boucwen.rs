@@ -188,7 +188,7 @@ fn greybox_fit_recovers_a_simulated_plant() {
     };
     let u = &ms.u[..4096];
     let y = truth.simulate(u, ms.ts).unwrap();
-    let fit = benchmark::fit_greybox(u, &y, ms.ts, 40);
+    let fit = benchmark::fit_greybox(u, &y, ms.ts, 40).unwrap();
     println!("{fit:?}");
     assert!(
         fit.start_rms > 1e-5,

@@ -28,6 +28,8 @@ pub mod mr_damper;
 
 use crate::data::{read_csv, DataError, IoRecord, Record, Signal};
 use crate::narx::{Lags, NarxConfig};
+use crate::numeric::lm::{levenberg_marquardt, LeastSquares, LmSettings, Scaling};
+use crate::numeric::lstsq::NormalEquations;
 use crate::plant::ode::bouc_wen_benchmark::IntegratorKind;
 use crate::plant::ode::{BoucWenBenchmarkSpec, OdeError};
 use nalgebra::{DMatrix, DVector};
@@ -141,6 +143,8 @@ pub enum BenchmarkError {
     Ode(#[from] OdeError),
     #[error("the model output has {found} samples, the record {expected}")]
     Length { expected: usize, found: usize },
+    #[error("the physical model cannot be simulated from any start of its grid on this record (every start gives a non-finite output); check that the record holds force in N and displacement in m")]
+    NoFiniteStart,
 }
 
 /// One record: input force (N) and output displacement (m).
@@ -424,25 +428,14 @@ const GD_SCALE: f64 = 1000.0;
 /// static stiffness k + alpha (split evenly).
 pub fn linear_start(u: &[f64], y: &[f64], ts: f64) -> GreyBoxParams {
     let n = y.len();
-    let rows = n - 2;
-    let mut a = DMatrix::<f64>::zeros(rows, 4);
-    let mut b = DVector::<f64>::zeros(rows);
     let su = 1.0 / crate::metrics::rms(u).max(f64::MIN_POSITIVE);
     let sy = 1.0 / crate::metrics::rms(y).max(f64::MIN_POSITIVE);
+    let mut ne = NormalEquations::new(4);
     for k in 2..n {
-        let r = k - 2;
-        a[(r, 0)] = y[k - 1] * sy;
-        a[(r, 1)] = y[k - 2] * sy;
-        a[(r, 2)] = u[k - 1] * su;
-        a[(r, 3)] = u[k - 2] * su;
-        b[r] = y[k] * sy;
+        let row = [y[k - 1] * sy, y[k - 2] * sy, u[k - 1] * su, u[k - 2] * su];
+        ne.add_row(&row, y[k] * sy);
     }
-    let ata = a.transpose() * &a;
-    let atb = a.transpose() * b;
-    let p = ata
-        .cholesky()
-        .map(|c| c.solve(&atb))
-        .unwrap_or_else(|| DVector::zeros(4));
+    let p = ne.solve(0.0).unwrap_or_else(|| DVector::zeros(4));
     let (a1, a2) = (p[0], p[1]);
     let gain = (p[2] + p[3]) * (su / sy) / (1.0 - a1 - a2);
     // Poles z^2 - a1 z - a2 = 0: complex pair r e^{+-i th}, r^2 = -a2, cos th = a1 / (2r).
@@ -479,21 +472,73 @@ pub struct GreyBoxFit {
     pub iterations: usize,
 }
 
-fn sim_residual(p: &GreyBoxParams, u: &[f64], y: &[f64], ts: f64) -> Option<Vec<f64>> {
-    let out = p.simulate(u, ts).ok()?;
-    Some(out.iter().zip(y).map(|(a, b)| a - b).collect())
+/// The physical model's simulation error on a record, as a least-squares problem: the residual
+/// `model - data`, the cost its RMS, the Jacobian by forward differences (one simulation per
+/// parameter, in parallel, summed in a fixed order).
+struct SimulationError<'a> {
+    u: &'a [f64],
+    y: &'a [f64],
+    ts: f64,
 }
 
-fn cost(r: &Option<Vec<f64>>) -> f64 {
-    match r {
-        Some(r) => (r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt(),
-        None => f64::INFINITY,
+impl SimulationError<'_> {
+    fn residual(&self, p: &GreyBoxParams) -> Option<Vec<f64>> {
+        let out = p.simulate(self.u, self.ts).ok()?;
+        Some(out.iter().zip(self.y).map(|(a, b)| a - b).collect())
+    }
+}
+
+impl LeastSquares for SimulationError<'_> {
+    type Eval = Vec<f64>;
+    fn eval(&self, theta: &[f64]) -> Option<Vec<f64>> {
+        self.residual(&GreyBoxParams::from_theta(theta))
+    }
+    fn cost(&self, r: &Vec<f64>) -> f64 {
+        (r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt()
+    }
+    fn normal_equations(
+        &self,
+        theta: &[f64],
+        r: &Vec<f64>,
+        free: &[usize],
+    ) -> Option<(DMatrix<f64>, DVector<f64>)> {
+        let h = 1e-6;
+        let cols: Vec<Vec<f64>> = free
+            .par_iter()
+            .map(|&j| {
+                let mut t = theta.to_vec();
+                t[j] += h;
+                self.eval(&t)
+                    .map(|rj| rj.iter().zip(r).map(|(a, b)| (a - b) / h).collect())
+            })
+            .collect::<Option<_>>()?;
+        let np = free.len();
+        let mut jtj = DMatrix::<f64>::zeros(np, np);
+        let mut jtr = DVector::<f64>::zeros(np);
+        for a in 0..np {
+            jtr[a] = cols[a].iter().zip(r).map(|(x, y)| x * y).sum();
+            for b in a..np {
+                let v: f64 = cols[a].iter().zip(&cols[b]).map(|(x, y)| x * y).sum();
+                jtj[(a, b)] = v;
+                jtj[(b, a)] = v;
+            }
+        }
+        Some((jtj, -jtr))
+    }
+    fn residual_norm(&self, r: &Vec<f64>) -> f64 {
+        r.iter().map(|v| v * v).sum::<f64>().sqrt()
     }
 }
 
 /// Fits the grey-box model to a record from rest (`u`, `y`, sampling period `ts`) by
 /// Levenberg-Marquardt on the simulation error, `max_iter` iterations at most.
-pub fn fit_greybox(u: &[f64], y: &[f64], ts: f64, max_iter: usize) -> GreyBoxFit {
+pub fn fit_greybox(
+    u: &[f64],
+    y: &[f64],
+    ts: f64,
+    max_iter: usize,
+) -> Result<GreyBoxFit, BenchmarkError> {
+    let problem = SimulationError { u, y, ts };
     let lin = linear_start(u, y, ts);
     // Small grid over gamma', delta' (the benchmark's class: hardening/softening loops).
     let grid: Vec<GreyBoxParams> = [0.0, 300.0, 1000.0]
@@ -506,92 +551,47 @@ pub fn fit_greybox(u: &[f64], y: &[f64], ts: f64, max_iter: usize) -> GreyBoxFit
             })
         })
         .collect();
-    let costs: Vec<f64> = grid
-        .par_iter()
-        .map(|p| cost(&sim_residual(p, u, y, ts)))
-        .collect();
-    let (best, _) =
-        costs.iter().enumerate().fold(
-            (0, f64::INFINITY),
-            |(bi, bc), (i, &c)| {
+    let evals: Vec<Option<Vec<f64>>> = grid.par_iter().map(|p| problem.residual(p)).collect();
+    let cost = |r: &Option<Vec<f64>>| r.as_ref().map_or(f64::INFINITY, |r| problem.cost(r));
+    let (best, start_rms) =
+        evals
+            .iter()
+            .enumerate()
+            .fold((0, f64::INFINITY), |(bi, bc), (i, r)| {
+                let c = cost(r);
                 if c < bc {
                     (i, c)
                 } else {
                     (bi, bc)
                 }
-            },
-        );
-    let start = grid[best];
-    let mut theta = start.to_theta();
-    let mut r = sim_residual(&start, u, y, ts).expect("grid start is finite");
-    let start_rms = cost(&Some(r.clone()));
-    let mut cur = start_rms;
-    let mut lambda = 1e-2;
-    let mut iterations = 0;
-    let np = theta.len();
-    for it in 0..max_iter {
-        iterations = it + 1;
-        // Forward-difference Jacobian, one simulation per column (in parallel, in order).
-        let h = 1e-6;
-        let cols: Vec<Option<Vec<f64>>> = (0..np)
-            .into_par_iter()
-            .map(|j| {
-                let mut t = theta;
-                t[j] += h;
-                sim_residual(&GreyBoxParams::from_theta(&t), u, y, ts)
-                    .map(|rj| rj.iter().zip(&r).map(|(a, b)| (a - b) / h).collect())
-            })
-            .collect();
-        if cols.iter().any(Option::is_none) {
-            break;
-        }
-        let cols: Vec<Vec<f64>> = cols.into_iter().map(Option::unwrap).collect();
-        let mut jtj = DMatrix::<f64>::zeros(np, np);
-        let mut jtr = DVector::<f64>::zeros(np);
-        for a in 0..np {
-            jtr[a] = cols[a].iter().zip(&r).map(|(x, y)| x * y).sum();
-            for b in a..np {
-                let v: f64 = cols[a].iter().zip(&cols[b]).map(|(x, y)| x * y).sum();
-                jtj[(a, b)] = v;
-                jtj[(b, a)] = v;
-            }
-        }
-        let mut improved = false;
-        for _ in 0..10 {
-            let mut m = jtj.clone();
-            for d in 0..np {
-                m[(d, d)] += lambda * jtj[(d, d)].max(1e-30);
-            }
-            let Some(step) = m.cholesky().map(|c| c.solve(&(-&jtr))) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let mut t = theta;
-            for d in 0..np {
-                t[d] += step[d];
-            }
-            let rn = sim_residual(&GreyBoxParams::from_theta(&t), u, y, ts);
-            let cn = cost(&rn);
-            if cn < cur {
-                let rel = (cur - cn) / cur;
-                theta = t;
-                r = rn.expect("finite cost");
-                cur = cn;
-                lambda = (lambda / 3.0).max(1e-9);
-                improved = rel > 1e-6;
-                break;
-            }
-            lambda *= 10.0;
-        }
-        if !improved {
-            break;
-        }
-    }
-    GreyBoxFit {
+            });
+    let (start, Some(r)) = (grid[best], evals.into_iter().nth(best).flatten()) else {
+        return Err(BenchmarkError::NoFiniteStart);
+    };
+    let settings = LmSettings {
+        max_iterations: max_iter,
+        scaling: Scaling::Current,
+        lambda_start: 1e-2,
+        lambda_min: 1e-9,
+        lambda_max: f64::INFINITY,
+        grow_singular: 10.0,
+        grow_rejected: 10.0,
+        shrink: 3.0,
+        tries: 10,
+        // stop after the first step that lowers the RMS by 1e-6 or less (relative)
+        tolerance: f64::from_bits(1e-6f64.to_bits() + 1),
+        patience: 1,
+        bound: f64::INFINITY,
+        zero_cost: f64::NEG_INFINITY,
+        gradient_tolerance: 0.0,
+    };
+    let all: Vec<usize> = (0..6).collect();
+    let out = levenberg_marquardt(&problem, start.to_theta().to_vec(), r, &all, &settings);
+    Ok(GreyBoxFit {
         start,
-        params: GreyBoxParams::from_theta(&theta),
+        params: GreyBoxParams::from_theta(&out.theta),
         start_rms,
-        train_rms: cur,
-        iterations,
-    }
+        train_rms: problem.cost(&out.eval),
+        iterations: out.iterations,
+    })
 }

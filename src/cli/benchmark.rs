@@ -77,7 +77,7 @@ pub fn run_narx(data: &BenchmarkData) -> anyhow::Result<TestScores> {
 /// Fits the grey-box model on the training record and scores it.
 pub fn run_greybox(data: &BenchmarkData) -> anyhow::Result<(TestScores, benchmark::GreyBoxFit)> {
     let tr = &data.train;
-    let fit = benchmark::fit_greybox(&tr.u, &tr.y, tr.ts, GREYBOX_MAX_ITER);
+    let fit = benchmark::fit_greybox(&tr.u, &tr.y, tr.ts, GREYBOX_MAX_ITER)?;
     let p = fit.params;
     let ts = tr.ts;
     let scores = benchmark::score_both(data, |u: &[f64]| -> anyhow::Result<Vec<f64>> {

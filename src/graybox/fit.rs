@@ -21,6 +21,7 @@ use super::nnls::{chol_solve, nnls_gram, NnlsSolution};
 use super::{FitOptions, GreyBoxError};
 use crate::effect::fitting::{FilterFit, OutputSetup, PathSetup, Prepared, TermFit, LIMIT};
 use crate::effect::{Effect, EffectSpec};
+use crate::numeric::lm::{self, LeastSquares, LmSettings, LmStop};
 use crate::plant::{OutputSpec, PathSpec};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -558,137 +559,76 @@ pub(crate) struct LmResult {
     pub message: String,
 }
 
-/// Levenberg-Marquardt with More's diagonal scaling on the projected problem.
+/// The output problem as seen by Levenberg-Marquardt: the full model (with dynamics), the
+/// Jacobian projected onto the free parameters.
+struct WithDynamics<'p, 'a>(&'p OutputProblem<'a>);
+
+impl LeastSquares for WithDynamics<'_, '_> {
+    type Eval = Eval;
+    fn eval(&self, th: &[f64]) -> Option<Eval> {
+        self.0.eval(th, true)
+    }
+    fn cost(&self, ev: &Eval) -> f64 {
+        ev.cost
+    }
+    fn normal_equations(
+        &self,
+        th: &[f64],
+        ev: &Eval,
+        free: &[usize],
+    ) -> Option<(DMatrix<f64>, DVector<f64>)> {
+        let j = self.0.jacobian(th, ev).select_columns(free.iter());
+        // the residual is data - model, so J^T r is already the descent direction
+        Some((j.tr_mul(&j), j.tr_mul(&DVector::from_column_slice(&ev.r))))
+    }
+    fn residual_norm(&self, ev: &Eval) -> f64 {
+        (2.0 * ev.cost).sqrt()
+    }
+}
+
+/// Levenberg-Marquardt with More's diagonal scaling on the projected problem; the parameters
+/// where `free` is false are held.
 pub(crate) fn levenberg_marquardt(
     prob: &OutputProblem,
     theta0: Vec<f64>,
     free: &[bool],
     opts: &FitOptions,
 ) -> Result<LmResult, GreyBoxError> {
-    let non_finite = |what: &str| GreyBoxError::NonFinite {
-        output: prob.name.clone(),
-        what: what.into(),
-    };
-    let mut th = theta0;
-    let mut ev = prob
-        .eval(&th, true)
-        .ok_or_else(|| non_finite("the initial model"))?;
+    let ev = prob
+        .eval(&theta0, true)
+        .ok_or_else(|| GreyBoxError::NonFinite {
+            output: prob.name.clone(),
+            what: "the initial model".into(),
+        })?;
     let idx: Vec<usize> = (0..prob.n_theta()).filter(|&i| free[i]).collect();
-    let p = idx.len();
-    if p == 0 {
-        return Ok(LmResult {
-            theta: th,
-            eval: ev,
-            iterations: 0,
-            converged: true,
-            message: "linear least squares (no nonlinear parameter)".into(),
-        });
-    }
     let y_mean = prob.y.iter().sum::<f64>() / prob.y.len() as f64;
     let y_energy = 0.5 * prob.y.iter().map(|v| (v - y_mean).powi(2)).sum::<f64>();
-    let mut lambda = 1e-3;
-    let mut dmax = vec![0.0f64; p];
-    let mut small = 0;
-    for it in 1..=opts.max_iterations {
-        if ev.cost <= 1e-24 * y_energy {
-            return Ok(LmResult {
-                theta: th,
-                eval: ev,
-                iterations: it - 1,
-                converged: true,
-                message: "the residual is zero to rounding".into(),
-            });
+    let settings = LmSettings {
+        max_iterations: opts.max_iterations,
+        tolerance: opts.tolerance,
+        bound: LIMIT,
+        zero_cost: 1e-24 * y_energy,
+        ..LmSettings::default()
+    };
+    let out = lm::levenberg_marquardt(&WithDynamics(prob), theta0, ev, &idx, &settings);
+    let message = match out.stop {
+        LmStop::NoFreeParameter => "linear least squares (no nonlinear parameter)".into(),
+        LmStop::ZeroResidual => "the residual is zero to rounding".into(),
+        LmStop::GradientVanishes => "the gradient vanishes".into(),
+        LmStop::NoDescent | LmStop::NoJacobian => {
+            "no step lowers the cost further (a minimum to the precision of the Jacobian)".into()
         }
-        let j = prob.jacobian(&th, &ev).select_columns(idx.iter());
-        let a = j.tr_mul(&j);
-        let g = j.tr_mul(&DVector::from_column_slice(&ev.r));
-        for i in 0..p {
-            dmax[i] = dmax[i].max(a[(i, i)]);
-        }
-        // gradient test: cosine between the residual and each Jacobian column
-        let rnorm = (2.0 * ev.cost).sqrt();
-        let cosine = (0..p)
-            .map(|i| {
-                let d = a[(i, i)].sqrt() * rnorm;
-                if d > 0.0 {
-                    g[i].abs() / d
-                } else {
-                    0.0
-                }
-            })
-            .fold(0.0, f64::max);
-        if cosine < 1e-9 {
-            return Ok(LmResult {
-                theta: th,
-                eval: ev,
-                iterations: it - 1,
-                converged: true,
-                message: "the gradient vanishes".into(),
-            });
-        }
-        loop {
-            let mut m = a.clone();
-            for i in 0..p {
-                m[(i, i)] += lambda * dmax[i].max(1e-30);
-            }
-            let step = m.cholesky().map(|c| c.solve(&g));
-            let Some(step) = step else {
-                lambda *= 10.0;
-                if lambda > 1e16 {
-                    break;
-                }
-                continue;
-            };
-            let mut t_new = th.clone();
-            for (k, &i) in idx.iter().enumerate() {
-                t_new[i] = (th[i] + step[k]).clamp(-LIMIT, LIMIT);
-            }
-            match prob.eval(&t_new, true) {
-                Some(e) if e.cost < ev.cost => {
-                    let rel = (ev.cost - e.cost) / ev.cost;
-                    th = t_new;
-                    ev = e;
-                    lambda = (lambda / 3.0).max(1e-12);
-                    small = if rel < opts.tolerance { small + 1 } else { 0 };
-                    break;
-                }
-                _ => {
-                    lambda *= 4.0;
-                    if lambda > 1e16 {
-                        break;
-                    }
-                }
-            }
-        }
-        if lambda > 1e16 {
-            return Ok(LmResult {
-                theta: th,
-                eval: ev,
-                iterations: it,
-                converged: true,
-                message:
-                    "no step lowers the cost further (a minimum to the precision of the Jacobian)"
-                        .into(),
-            });
-        }
-        if small >= 2 {
-            return Ok(LmResult {
-                theta: th,
-                eval: ev,
-                iterations: it,
-                converged: true,
-                message: format!("the cost changed by less than {} twice", opts.tolerance),
-            });
-        }
-    }
-    Ok(LmResult {
-        theta: th,
-        eval: ev,
-        iterations: opts.max_iterations,
-        converged: false,
-        message: format!(
+        LmStop::SmallChange => format!("the cost changed by less than {} twice", opts.tolerance),
+        LmStop::MaxIterations => format!(
             "did not converge in {} iterations; the best parameters found are kept",
             opts.max_iterations
         ),
+    };
+    Ok(LmResult {
+        theta: out.theta,
+        eval: out.eval,
+        iterations: out.iterations,
+        converged: out.stop.converged(),
+        message,
     })
 }

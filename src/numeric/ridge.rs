@@ -1,7 +1,7 @@
 //! Ridge least squares on a few standardised regressors (the diagnosis's regressions, the
 //! creep drift's slope).
 
-use nalgebra::{DMatrix, DVector};
+use super::lstsq::{solve_ridge, NormalEquations};
 
 /// Ridge least squares on standardised columns: coefficients for `cols` (plus an intercept
 /// when `intercept`), fitted on rows `fit`.
@@ -35,8 +35,7 @@ pub fn fit_rows(cols: &[&[f64]], y: &[f64], rows: &[usize], intercept: bool) -> 
             }
         })
         .collect();
-    let mut g = DMatrix::<f64>::zeros(p, p);
-    let mut b = DVector::<f64>::zeros(p);
+    let mut ne = NormalEquations::new(p);
     let mut row = vec![0.0; p];
     for &k in rows {
         for (j, c) in cols.iter().enumerate() {
@@ -45,23 +44,11 @@ pub fn fit_rows(cols: &[&[f64]], y: &[f64], rows: &[usize], intercept: bool) -> 
         if intercept {
             row[p - 1] = 1.0;
         }
-        for i in 0..p {
-            b[i] += row[i] * y[k];
-            for j in 0..=i {
-                g[(i, j)] += row[i] * row[j];
-            }
-        }
+        ne.add_row(&row, y[k]);
     }
-    for i in 0..p {
-        for j in 0..i {
-            g[(j, i)] = g[(i, j)];
-        }
-    }
+    let (g, b) = ne.into_parts();
     let ridge = 1e-8 * (0..p).map(|i| g[(i, i)]).sum::<f64>() / p as f64;
-    for i in 0..p {
-        g[(i, i)] += ridge;
-    }
-    let sol = g.cholesky()?.solve(&b);
+    let sol = solve_ridge(g, &b, ridge)?;
     let mut coef: Vec<f64> = (0..cols.len()).map(|j| sol[j] / scale[j]).collect();
     if intercept {
         coef.push(sol[p - 1]);

@@ -55,7 +55,7 @@ use crate::effect::viscous::rate;
 use crate::effect::Operator;
 use crate::metrics;
 use crate::narx::{FittedNarx, Interaction, Lags, Mode, NarxConfig, NarxError};
-use nalgebra::{DMatrix, DVector};
+
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 // ---------------------------------------------------------------------------------------------

@@ -2,6 +2,7 @@
 //! fitted by variable projection.
 
 use super::*;
+use crate::numeric::lstsq::{solve_scaled, NormalEquations};
 use crate::numeric::optimize::{golden_section, nelder_mead};
 
 // ---------------------------------------------------------------------------------------------
@@ -142,31 +143,19 @@ fn linear_fit(
     (b, gamma, v0): (f64, f64, f64),
     m: usize,
 ) -> Option<(Vec<f64>, f64)> {
-    let mut g = DMatrix::<f64>::zeros(m, m);
-    let mut rhs = DVector::<f64>::zeros(m);
+    let mut ne = NormalEquations::new(m);
     let mut ff = 0.0;
-    let mut n = 0usize;
     for r in recs {
         let (v, z) = shape_states(structure, &r.x, r.ts, b, gamma, v0)?;
         for (row, &f) in design_rows(r, &v, &z, m == 8).iter().zip(&r.f) {
-            for i in 0..m {
-                rhs[i] += row[i] * f;
-                for j in 0..m {
-                    g[(i, j)] += row[i] * row[j];
-                }
-            }
+            ne.add_row(&row[..m], f);
             ff += f * f;
-            n += 1;
         }
     }
-    // column scaling for conditioning
-    let d: Vec<f64> = (0..m).map(|i| g[(i, i)].max(1e-300).sqrt()).collect();
-    let gs = DMatrix::from_fn(m, m, |i, j| {
-        g[(i, j)] / (d[i] * d[j]) + if i == j { 1e-12 } else { 0.0 }
-    });
-    let bs = DVector::from_fn(m, |i, _| rhs[i] / d[i]);
-    let c = gs.cholesky()?.solve(&bs);
-    let coef: Vec<f64> = (0..m).map(|i| c[i] / d[i]).collect();
+    let n = ne.rows();
+    let (g, rhs) = ne.into_parts();
+    // columns scaled for conditioning (forces, velocities and states differ by decades)
+    let coef: Vec<f64> = solve_scaled(&g, &rhs, 1e-12)?.iter().copied().collect();
     // residual energy = F'F - 2 c'b + c'Gc
     let mut sse = ff;
     for i in 0..m {
