@@ -243,6 +243,18 @@ fn identical_models_at_one_and_two_threads() {
     assert_ne!(one, model_bytes(&cfg.fit(&rec).unwrap()));
 }
 
+/// One training path: on one record, `fit_records` is `fit` without the feature selection, bit
+/// for bit (2-DoF, so the joint (output, restart) jobs are exercised too).
+#[test]
+fn fit_records_on_one_record_is_fit_without_the_selection() {
+    let rec = seed_2dof(3).split_halves().0;
+    let mut cfg = quick(config(&rec));
+    cfg.robust.try_features.clear();
+    let one = model_bytes(&cfg.fit(&rec).unwrap());
+    let records = model_bytes(&cfg.fit_records(std::slice::from_ref(&rec)).unwrap());
+    assert!(one == records, "fit and fit_records differ on one record");
+}
+
 #[test]
 fn model_file_round_trip_and_refusals() {
     let rec = seed_2dof(4);
@@ -279,6 +291,17 @@ fn model_file_round_trip_and_refusals() {
         .pop();
     let e = FittedNarx::from_json(p, &v.to_string()).unwrap_err();
     assert!(e.to_string().contains("parameters"), "{e}");
+    // a key given twice is refused with its line (it would silently win otherwise)
+    let twice = text.replacen("\"config\": {", "\"config\": {\n      \"lr\": 0.5,", 1);
+    let e = FittedNarx::from_json(p, &twice).unwrap_err().to_string();
+    assert!(
+        e.contains("duplicate field `lr`") && e.contains("line"),
+        "{e}"
+    );
+    // and so is a field the format does not have
+    let extra = text.replacen("\"model\": {", "\"modle\": 1,\n  \"model\": {", 1);
+    let e = FittedNarx::from_json(p, &extra).unwrap_err().to_string();
+    assert!(e.contains("modle"), "{e}");
 }
 
 #[test]

@@ -354,7 +354,8 @@ impl NarxConfig {
         v
     }
 
-    /// Check every setting; the error names the field and the rule.
+    /// Check every setting; the error names the field and the rule. (Long on purpose: one
+    /// line per setting, read as a table of rules.)
     pub fn check(&self) -> Result<(), NarxError> {
         let bad = |field, value: String, rule| Err(NarxError::InvalidConfig { field, value, rule });
         if self.inputs.is_empty() {

@@ -21,10 +21,10 @@
 
 pub mod config;
 mod error;
+pub mod fit;
 pub mod kernel;
 pub mod mlp;
 pub mod model;
-pub mod multi;
 pub mod regressors;
 pub mod synthetic;
 pub mod train;

@@ -1,19 +1,14 @@
 //! The fitted NARX model: fitting (the driver), prediction, scores and the model file.
 
-use super::config::{NarxConfig, Protocol};
+use super::config::NarxConfig;
 use super::mlp::Mlp;
-use super::regressors::{Regressor, RegressorForm, Series, Standardiser};
-use super::train::{
-    free_run_fast, free_run_score, init_output_layer, train_one_step, train_simulation_error,
-    Design, OneStepRecord, SimulationRecord,
-};
+use super::regressors::{Regressor, Series, Standardiser};
+use super::train::{free_run_fast, Design, OneStepRecord, SimulationRecord};
 use super::NarxError;
-use crate::data::IoRecord;
-use crate::effect::noise::stream_seed;
+use crate::data::{parse_json, IoRecord, JsonPosition};
 use crate::effect::EffectName;
-use crate::effect::{registry, FeatureSpec};
+use crate::effect::FeatureSpec;
 use crate::metrics::{scores, Scores};
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -145,11 +140,11 @@ impl OutputPrediction {
 }
 
 /// The input columns of a record as slices.
-fn input_slices(rec: &IoRecord) -> Vec<&[f64]> {
+pub(super) fn input_slices(rec: &IoRecord) -> Vec<&[f64]> {
     rec.inputs.iter().map(|s| &s.values[..]).collect()
 }
 
-fn names_str(v: &[String]) -> String {
+pub(super) fn names_str(v: &[String]) -> String {
     format!("[{}]", v.join(", "))
 }
 
@@ -169,331 +164,6 @@ pub(crate) fn best_restart<'a>(records: impl Iterator<Item = &'a RestartRecord>)
         }
     }
     chosen
-}
-
-impl NarxConfig {
-    /// Fit one network per output on a training record whose inputs and outputs are the
-    /// configuration's signals (in order). With the default protocol and
-    /// `robust.try_features` (default: hysteresis), the model is fitted without and with those
-    /// effects' basis signals and the lower free-run validation error decides (see
-    /// [`FeatureSelection`]); the chosen features end up in the fitted model's `config.features`.
-    pub fn fit(&self, train: &IoRecord) -> Result<FittedNarx, NarxError> {
-        self.check()?;
-        // Without a validation part (a short record, see `RobustSettings::for_record`) the
-        // selection would score the training free run, which favours the richer model.
-        if self.protocol != Protocol::Default
-            || self.robust.try_features.is_empty()
-            || self.robust.for_record(train.len()).validation_fraction == 0.0
-        {
-            return self.fit_fixed(train);
-        }
-        let t0 = std::time::Instant::now();
-        let mut plain = self.clone();
-        plain.robust.try_features.clear();
-        // errors (columns, length, constant output) come from the plain fit
-        let without = plain.fit_fixed(train)?;
-        let inputs = input_slices(train);
-        let mut candidates: Vec<FeatureSpec> = Vec::new();
-        for e in &self.robust.try_features {
-            let specs =
-                registry::effect(*e).map_or_else(Vec::new, |x| x.features(&inputs, train.ts));
-            for f in specs {
-                if !self.features.contains(&f) && !candidates.contains(&f) {
-                    candidates.push(f);
-                }
-            }
-        }
-        if candidates.is_empty() {
-            let mut m = without;
-            m.train_seconds = t0.elapsed().as_secs_f64();
-            return Ok(m);
-        }
-        let mut rich = plain.clone();
-        rich.features.extend(candidates.iter().cloned());
-        let with = rich.fit_fixed(train)?;
-        let (a, b) = (without.selection_mse(), with.selection_mse());
-        let gain = self.robust.feature_gain;
-        let use_them = match (a, b) {
-            (None, Some(_)) => true,
-            (Some(a), Some(b)) => b < gain * a,
-            _ => false,
-        };
-        let mut m = if use_them { with } else { without };
-        m.feature_selection = Some(FeatureSelection {
-            tried: self.robust.try_features.clone(),
-            candidates,
-            selection_mse_without: a,
-            selection_mse_with: b,
-            chosen: use_them,
-        });
-        m.train_seconds = t0.elapsed().as_secs_f64();
-        Ok(m)
-    }
-
-    /// [`NarxConfig::fit`] with the configuration's features as they are (no selection).
-    fn fit_fixed(&self, train: &IoRecord) -> Result<FittedNarx, NarxError> {
-        self.check()?;
-        let t0 = std::time::Instant::now();
-        if train.input_names() != self.inputs {
-            return Err(NarxError::ColumnMismatch {
-                path: train.path.clone(),
-                what: "input",
-                expected: names_str(&self.inputs),
-                found: names_str(&train.input_names()),
-            });
-        }
-        if train.output_names() != self.outputs {
-            return Err(NarxError::ColumnMismatch {
-                path: train.path.clone(),
-                what: "output",
-                expected: names_str(&self.outputs),
-                found: names_str(&train.output_names()),
-            });
-        }
-        let n = train.len();
-        let start = self.lags.start();
-        let needed = start + 2;
-        if n < needed {
-            return Err(NarxError::TooShort {
-                path: train.path.clone(),
-                rows: n,
-                needed,
-                why: format!(
-                    "{} output lags, {} input lags with delay {} need {} initial samples, plus at least 2 to train on",
-                    self.lags.output, self.lags.input, self.lags.delay, start
-                ),
-            });
-        }
-        for o in &train.outputs {
-            let first = o.values[0];
-            if o.values.iter().all(|v| *v == first) {
-                return Err(NarxError::ConstantOutput {
-                    path: train.path.clone(),
-                    name: o.name.clone(),
-                    value: first,
-                });
-            }
-        }
-        let raw = self.exogenous(&input_slices(train), train.ts);
-        let input_scaling: Vec<Standardiser> = raw.iter().map(|s| Standardiser::fit(s)).collect();
-        let u: Vec<Vec<f64>> = raw
-            .iter()
-            .zip(&input_scaling)
-            .map(|(s, sc)| sc.apply(s))
-            .collect();
-        let restarts = match self.protocol {
-            Protocol::Default => self.robust.restarts_for(n),
-            Protocol::Study => 1,
-        };
-        // every (output, restart) job in parallel; results in order
-        let jobs: Vec<(usize, usize)> = (0..train.outputs.len())
-            .flat_map(|o| (0..restarts).map(move |r| (o, r)))
-            .collect();
-        let prepared: Vec<(Standardiser, Series)> = train
-            .outputs
-            .iter()
-            .map(|o| {
-                let sc = Standardiser::fit(&o.values);
-                (
-                    sc,
-                    Series {
-                        y: sc.apply(&o.values),
-                        u: u.clone(),
-                    },
-                )
-            })
-            .collect();
-        let regressors: Vec<Regressor> = prepared
-            .iter()
-            .map(|(_, s)| {
-                let form = match self.protocol {
-                    Protocol::Default => RegressorForm::Incremental,
-                    Protocol::Study => RegressorForm::Lagged,
-                };
-                Regressor::fit(self.lags, form, s)
-            })
-            .collect();
-        let results: Vec<(Mlp, RestartRecord, usize, usize)> = jobs
-            .par_iter()
-            .map(|&(o, r)| {
-                let seed = stream_seed(self.seed, (o as u64) << 32 | r as u64);
-                self.fit_one(&prepared[o].1, &regressors[o], seed)
-            })
-            .collect();
-        let mut outputs = Vec::new();
-        for (o, sig) in train.outputs.iter().enumerate() {
-            let mine = &results[o * restarts..(o + 1) * restarts];
-            let chosen = best_restart(mine.iter().map(|r| &r.1));
-            let net = mine[chosen].0.clone();
-            if !net.params.iter().all(|p| p.is_finite()) {
-                return Err(NarxError::NonFiniteWeights {
-                    output: sig.name.clone(),
-                    lr: self.lr,
-                });
-            }
-            let size = match self.protocol {
-                Protocol::Default => self.robust.ensemble_size(n),
-                Protocol::Study => 1,
-            };
-            let members = choose_ensemble(mine, chosen, size);
-            let ensemble: Vec<Mlp> = members.iter().skip(1).map(|&i| mine[i].0.clone()).collect();
-            outputs.push(OutputModel {
-                name: sig.name.clone(),
-                scaling: prepared[o].0,
-                train_min: sig.values.iter().copied().fold(f64::INFINITY, f64::min),
-                train_max: sig.values.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-                regressor: regressors[o].clone(),
-                network: net,
-                ensemble,
-                training: OutputTraining {
-                    train_samples: mine[chosen].2,
-                    validation_samples: mine[chosen].3,
-                    restarts: mine.iter().map(|r| r.1.clone()).collect(),
-                    chosen_restart: chosen,
-                    ensemble_restarts: if members.len() > 1 {
-                        members
-                    } else {
-                        Vec::new()
-                    },
-                },
-            });
-        }
-        Ok(FittedNarx {
-            config: self.clone(),
-            input_scaling,
-            outputs,
-            train_seconds: t0.elapsed().as_secs_f64(),
-            feature_selection: None,
-        })
-    }
-
-    /// One restart for one output (standardised series). Returns the network, its record, and
-    /// the numbers of training and validation samples.
-    fn fit_one(
-        &self,
-        s: &Series,
-        reg: &Regressor,
-        seed: u64,
-    ) -> (Mlp, RestartRecord, usize, usize) {
-        let lags = self.lags;
-        let start = lags.start();
-        let n = s.len();
-        match self.protocol {
-            Protocol::Study => {
-                let mut net = self.network(false, stream_seed(seed, 1));
-                let d = Design::new(s, reg);
-                let rec = train_one_step(
-                    &mut net,
-                    &d,
-                    None,
-                    self.optimizer,
-                    self.lr,
-                    self.batch,
-                    self.epochs,
-                    None,
-                    stream_seed(seed, 2),
-                );
-                (
-                    net,
-                    RestartRecord {
-                        seed,
-                        one_step: rec,
-                        simulation: None,
-                        selection_mse: None,
-                    },
-                    n,
-                    0,
-                )
-            }
-            Protocol::Default => {
-                let r = &self.robust.for_record(n);
-                let n_val = (n as f64 * r.validation_fraction).round() as usize;
-                // validation needs a few samples beyond the initial lags; otherwise score on all
-                let (fit_end, val_from) = if n_val >= 8 && n - n_val >= start + 8 {
-                    (n - n_val, n - n_val)
-                } else {
-                    (n, start)
-                };
-                let fit = s.slice(0..fit_end);
-                let d_fit = Design::new(&fit, reg);
-                let d_val = (fit_end < n).then(|| Design::new(&s.slice(fit_end - start..n), reg));
-                let mut net = self.network(r.bypass, stream_seed(seed, 1));
-                init_output_layer(&mut net, &d_fit, 1e-8);
-                let one_step = train_one_step(
-                    &mut net,
-                    &d_fit,
-                    d_val.as_ref().or(Some(&d_fit)),
-                    self.optimizer,
-                    self.lr,
-                    self.batch,
-                    self.epochs,
-                    Some(r.patience),
-                    stream_seed(seed, 2),
-                );
-                let (lo, hi) = plausible_range(&s.y);
-                // The validation free run starts half-way into the fitting part (away from any
-                // start-up transient) and is scored on the validation part.
-                let sim_from = (fit_end / 2).max(start).min(val_from);
-                let val = s.slice(sim_from - start..n);
-                let vf = val_from + start - sim_from;
-                let sim = train_simulation_error(
-                    &mut net,
-                    reg,
-                    s,
-                    fit_end,
-                    &val,
-                    vf,
-                    lo,
-                    hi,
-                    r,
-                    stream_seed(seed, 3),
-                );
-                let selection_mse = free_run_score(&net, reg, &val, vf, lo, hi);
-                (
-                    net,
-                    RestartRecord {
-                        seed,
-                        one_step,
-                        simulation: Some(sim),
-                        selection_mse,
-                    },
-                    fit_end,
-                    n - fit_end,
-                )
-            }
-        }
-    }
-}
-
-/// The restarts kept for one output: `chosen` first, then the others by their free-run
-/// selection MSE (diverged ones left out), at most `size` (training record only).
-fn choose_ensemble(
-    mine: &[(Mlp, RestartRecord, usize, usize)],
-    chosen: usize,
-    size: usize,
-) -> Vec<usize> {
-    let mut ranked: Vec<(usize, f64)> = mine
-        .iter()
-        .enumerate()
-        .filter_map(|(i, r)| {
-            let ok = r.0.params.iter().all(|p| p.is_finite());
-            r.1.selection_mse.filter(|_| ok).map(|m| (i, m))
-        })
-        .collect();
-    // stable sort: equal errors keep restart order
-    ranked.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let mut order: Vec<usize> = vec![chosen];
-    order.extend(ranked.iter().map(|r| r.0).filter(|&i| i != chosen));
-    order.truncate(size.max(1));
-    order
-}
-
-/// The training range widened by [`DIVERGENCE_RANGES`] ranges on each side.
-fn plausible_range(y: &[f64]) -> (f64, f64) {
-    let lo = y.iter().copied().fold(f64::INFINITY, f64::min);
-    let hi = y.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let r = (hi - lo).max(f64::MIN_POSITIVE);
-    (lo - DIVERGENCE_RANGES * r, hi + DIVERGENCE_RANGES * r)
 }
 
 impl FittedNarx {
@@ -650,11 +320,27 @@ impl FittedNarx {
 
     /// Read a model file; another format or version, or a damaged file, is a clear error.
     pub fn from_json(path: &Path, text: &str) -> Result<FittedNarx, NarxError> {
-        let v: serde_json::Value = serde_json::from_str(text).map_err(|e| NarxError::Damaged {
+        let damaged = |e: JsonPosition| NarxError::Damaged {
             path: path.to_path_buf(),
-            why: format!("not valid JSON ({e})"),
-        })?;
-        match v.get("format").and_then(|f| f.as_str()) {
+            why: format!("line {}, column {}: {}", e.line, e.column, e.message),
+        };
+        // the header first, so that another file kind or version is said as such
+        #[derive(Deserialize)]
+        struct Header {
+            format: Option<String>,
+            version: Option<serde_json::Value>,
+        }
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct File {
+            #[allow(dead_code)]
+            format: String,
+            #[allow(dead_code)]
+            version: u32,
+            model: FittedNarx,
+        }
+        let header: Header = parse_json(text).map_err(damaged)?;
+        match header.format.as_deref() {
             Some(FORMAT) => {}
             Some(other) => {
                 return Err(NarxError::NotAModel {
@@ -669,7 +355,7 @@ impl FittedNarx {
                 })
             }
         }
-        match v.get("version") {
+        match header.version {
             Some(x) if x.as_u64() == Some(VERSION as u64) => {}
             other => {
                 return Err(NarxError::Version {
@@ -679,15 +365,7 @@ impl FittedNarx {
                 })
             }
         }
-        let model = v.get("model").ok_or_else(|| NarxError::Damaged {
-            path: path.to_path_buf(),
-            why: "no `model` field".into(),
-        })?;
-        let m: FittedNarx =
-            serde_json::from_value(model.clone()).map_err(|e| NarxError::Damaged {
-                path: path.to_path_buf(),
-                why: e.to_string(),
-            })?;
+        let m = parse_json::<File>(text).map_err(damaged)?.model;
         m.validate().map_err(|why| NarxError::Damaged {
             path: path.to_path_buf(),
             why,

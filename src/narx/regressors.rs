@@ -187,7 +187,12 @@ pub struct Regressor {
 
 fn diff_gain(x: &[f64]) -> f64 {
     let d: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
-    let m = crate::metrics::mean(&d);
+    inverse_std(&d)
+}
+
+/// 1 / the population standard deviation of `d` (1 when it is zero or not finite).
+pub(crate) fn inverse_std(d: &[f64]) -> f64 {
+    let m = crate::metrics::mean(d);
     let sd = (d.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / d.len().max(1) as f64).sqrt();
     if sd > 0.0 && sd.is_finite() {
         1.0 / sd

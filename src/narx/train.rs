@@ -25,7 +25,7 @@ use super::config::{OptimizerKind, RobustSettings};
 use super::kernel::{self, BatchWorkspace};
 use super::mlp::{uniform01, Mlp};
 use super::regressors::{Regressor, Series};
-use nalgebra::{DMatrix, DVector};
+use crate::numeric::lstsq::NormalEquations;
 use rand::rngs::Xoshiro256PlusPlus;
 use rand::SeedableRng;
 use serde::{Deserialize, Serialize};
@@ -300,8 +300,7 @@ pub fn init_output_layer(mlp: &mut Mlp, d: &Design, ridge: f64) {
     let h = mlp.sizes[nl - 1];
     let p = d.width;
     let cols = h + 1 + if mlp.bypass { p } else { 0 };
-    let mut ata = DMatrix::<f64>::zeros(cols, cols);
-    let mut atb = DVector::<f64>::zeros(cols);
+    let mut ne = NormalEquations::new(cols);
     let mut acts = vec![0.0; mlp.acts_len()];
     let mut row = vec![0.0; cols];
     let hid_end = mlp.acts_len() - 1;
@@ -313,26 +312,11 @@ pub fn init_output_layer(mlp: &mut Mlp, d: &Design, ridge: f64) {
         if mlp.bypass {
             row[h + 1..].copy_from_slice(x);
         }
-        // symmetric rank-1 update, upper triangle
-        for a in 0..cols {
-            let ra = row[a];
-            atb[a] += ra * d.t[i];
-            for b in a..cols {
-                ata[(a, b)] += ra * row[b];
-            }
-        }
+        ne.add_row(&row, d.t[i]);
     }
-    for a in 0..cols {
-        for b in 0..a {
-            ata[(a, b)] = ata[(b, a)];
-        }
-        ata[(a, a)] += ridge * d.rows() as f64;
-    }
-    let Some(ch) = ata.cholesky() else { return };
-    let w = ch.solve(&atb);
-    if !w.iter().all(|v| v.is_finite()) {
+    let Some(w) = ne.solve(ridge * d.rows() as f64) else {
         return;
-    }
+    };
     let off = mlp.bypass_offset() - h - 1;
     for j in 0..h {
         mlp.params[off + j] = w[j];
@@ -413,7 +397,8 @@ fn free_run_one_hidden_avx2(
 
 /// The body of [`free_run_fast`]: per sample, every neuron's input (exogenous regressors, then
 /// output lags, each added to all neurons at once), tanh over all neurons in whole vectors, and
-/// the output sum in neuron order.
+/// the output sum in neuron order. (Long on purpose: the hot loop of every free run, kept in
+/// one piece so that the compiler keeps its buffers in registers.)
 #[inline(always)]
 fn free_run_one_hidden(
     mlp: &Mlp,
@@ -619,6 +604,8 @@ pub fn free_run_score(
 
 /// Simulation-error training on `s.slice(0..fit_end)` with windows; every `eval_every` steps the
 /// free run of the validation series `val`, scored on `val_from..`, decides which weights to keep.
+/// (Long on purpose: one training loop whose steps share the window, optimiser and best-so-far
+/// state; split, they would pass all of it around.)
 #[allow(clippy::too_many_arguments)]
 pub fn train_simulation_error(
     mlp: &mut Mlp,

@@ -1,0 +1,535 @@
+//! # Fitting a NARX model: one path for one record and for several
+//!
+//! [`NarxConfig::fit`] trains on one record (with the default protocol's feature selection);
+//! [`NarxConfig::fit_records`] on several experiments of one system (e.g. one per operating
+//! point). Both run one routine (`fit_fixed`), in which no regressor and no free-run window ever
+//! crosses a record boundary:
+//!
+//! - scalings: inputs and outputs standardised with the statistics of all records together;
+//!   the incremental form's difference scalings from the differences *within* each record;
+//! - one-step phase: the regressor rows of every record's fitting part (its first 80 %)
+//!   stacked; early stopping on the rows of every record's validation part;
+//! - simulation-error phase: [`train_simulation_error`] on each record alone (its windows stay
+//!   inside that record; the weights with the best free run on its validation part are kept),
+//!   [`ROUNDS`] rounds over the records when there are several;
+//! - restarts and ensemble members chosen by the mean free-run validation MSE over the records.
+//!
+//! Every (output, restart) job runs in parallel; the results do not depend on the thread count.
+//!
+//! ## References
+//! - S. Chen, S. A. Billings, P. M. Grant, Int. J. Control 51(6):1191-1214, 1990.
+//! - A. H. Ribeiro, L. A. Aguirre, Neurocomputing 316:222-231, 2018 (simulation error).
+
+use super::config::{NarxConfig, Protocol, RobustSettings};
+use super::mlp::Mlp;
+use super::model::{
+    best_restart, input_slices, names_str, FeatureSelection, FittedNarx, OutputModel,
+    OutputTraining, RestartRecord, DIVERGENCE_RANGES,
+};
+use super::regressors::{inverse_std, Regressor, RegressorForm, Series, Standardiser};
+use super::train::{
+    free_run_score, init_output_layer, train_one_step, train_simulation_error, Design,
+};
+use super::NarxError;
+use crate::data::IoRecord;
+use crate::effect::noise::stream_seed;
+use crate::effect::{registry, FeatureSpec};
+use rayon::prelude::*;
+use std::borrow::Cow;
+
+/// Rounds of simulation-error training over the records when there are several.
+pub const ROUNDS: usize = 3;
+
+/// The segments one after another (borrowed when there is one).
+fn pooled<'a>(segments: &[&'a [f64]]) -> Cow<'a, [f64]> {
+    match segments {
+        [one] => Cow::Borrowed(one),
+        _ => Cow::Owned(segments.concat()),
+    }
+}
+
+/// 1 / standard deviation of the differences within each segment (1 when constant).
+fn pooled_diff_gain(segments: &[&[f64]]) -> f64 {
+    let d: Vec<f64> = segments
+        .iter()
+        .flat_map(|x| x.windows(2).map(|w| w[1] - w[0]))
+        .collect();
+    inverse_std(&d)
+}
+
+fn stack(designs: Vec<Design>) -> Design {
+    if designs.len() == 1 {
+        return designs.into_iter().next().expect("one design");
+    }
+    let width = designs.first().map_or(0, |d| d.width);
+    Design {
+        x: designs.iter().flat_map(|d| d.x.iter().copied()).collect(),
+        t: designs.iter().flat_map(|d| d.t.iter().copied()).collect(),
+        width,
+    }
+}
+
+/// One record's standardised series, where its fitting part ends, and its validation free run
+/// (the series from half-way into the fitting part, scored from `val_from`).
+struct Part {
+    s: Series,
+    fit_end: usize,
+    val: Series,
+    val_from: usize,
+}
+
+/// Everything one output's restarts share.
+struct OutputData {
+    scaling: Standardiser,
+    reg: Regressor,
+    parts: Vec<Part>,
+    d_fit: Design,
+    d_val: Option<Design>,
+    /// The plausible range of the free run (standardised units).
+    lo: f64,
+    hi: f64,
+    train_min: f64,
+    train_max: f64,
+}
+
+/// One restart: the network, its record, and the numbers of fitting and validation samples.
+type Restart = (Mlp, RestartRecord, usize, usize);
+
+impl NarxConfig {
+    /// Fit one network per output on a training record whose inputs and outputs are the
+    /// configuration's signals (in order). With the default protocol and
+    /// `robust.try_features` (default: hysteresis), the model is fitted without and with those
+    /// effects' basis signals and the lower free-run validation error decides (see
+    /// [`FeatureSelection`]); the chosen features end up in the fitted model's `config.features`.
+    pub fn fit(&self, train: &IoRecord) -> Result<FittedNarx, NarxError> {
+        self.check()?;
+        let records = std::slice::from_ref(train);
+        // Without a validation part (a short record, see `RobustSettings::for_record`) the
+        // selection would score the training free run, which favours the richer model.
+        if self.protocol != Protocol::Default
+            || self.robust.try_features.is_empty()
+            || self.robust.for_record(train.len()).validation_fraction == 0.0
+        {
+            return self.fit_fixed(records);
+        }
+        let t0 = std::time::Instant::now();
+        let mut plain = self.clone();
+        plain.robust.try_features.clear();
+        // errors (columns, length, constant output) come from the plain fit
+        let without = plain.fit_fixed(records)?;
+        let inputs = input_slices(train);
+        let mut candidates: Vec<FeatureSpec> = Vec::new();
+        for e in &self.robust.try_features {
+            let specs =
+                registry::effect(*e).map_or_else(Vec::new, |x| x.features(&inputs, train.ts));
+            for f in specs {
+                if !self.features.contains(&f) && !candidates.contains(&f) {
+                    candidates.push(f);
+                }
+            }
+        }
+        if candidates.is_empty() {
+            let mut m = without;
+            m.train_seconds = t0.elapsed().as_secs_f64();
+            return Ok(m);
+        }
+        let mut rich = plain.clone();
+        rich.features.extend(candidates.iter().cloned());
+        let with = rich.fit_fixed(records)?;
+        let (a, b) = (without.selection_mse(), with.selection_mse());
+        let gain = self.robust.feature_gain;
+        let use_them = match (a, b) {
+            (None, Some(_)) => true,
+            (Some(a), Some(b)) => b < gain * a,
+            _ => false,
+        };
+        let mut m = if use_them { with } else { without };
+        m.feature_selection = Some(FeatureSelection {
+            tried: self.robust.try_features.clone(),
+            candidates,
+            selection_mse_without: a,
+            selection_mse_with: b,
+            chosen: use_them,
+        });
+        m.train_seconds = t0.elapsed().as_secs_f64();
+        Ok(m)
+    }
+
+    /// Fit on several records (same inputs, outputs and sampling period); see the module
+    /// documentation. Needs the default protocol; runs no feature selection (the fitted
+    /// model's config says so). On one record it is [`NarxConfig::fit`] without the selection.
+    pub fn fit_records(&self, records: &[IoRecord]) -> Result<FittedNarx, NarxError> {
+        self.check()?;
+        if self.protocol != Protocol::Default {
+            return Err(NarxError::InvalidConfig {
+                field: "protocol",
+                value: "study".into(),
+                rule: "training on several records needs the default protocol",
+            });
+        }
+        let mut m = self.fit_fixed(records)?;
+        m.config.robust.try_features.clear();
+        Ok(m)
+    }
+
+    /// The fit with the configuration's features as they are (no selection).
+    fn fit_fixed(&self, records: &[IoRecord]) -> Result<FittedNarx, NarxError> {
+        self.check()?;
+        let t0 = std::time::Instant::now();
+        self.check_training(records)?;
+        let raw: Vec<Vec<Vec<f64>>> = records
+            .iter()
+            .map(|r| self.exogenous(&input_slices(r), r.ts))
+            .collect();
+        let input_scaling: Vec<Standardiser> = (0..raw[0].len())
+            .map(|j| {
+                let segs: Vec<&[f64]> = raw.iter().map(|r| &r[j][..]).collect();
+                Standardiser::fit(&pooled(&segs))
+            })
+            .collect();
+        let u_std: Vec<Vec<Vec<f64>>> = raw
+            .iter()
+            .map(|r| {
+                r.iter()
+                    .zip(&input_scaling)
+                    .map(|(s, sc)| sc.apply(s))
+                    .collect()
+            })
+            .collect();
+        let n_total: usize = records.iter().map(IoRecord::len).sum();
+        let settings = self.robust.for_record(n_total);
+        let data: Vec<OutputData> = (0..self.outputs.len())
+            .map(|o| self.output_data(records, &u_std, o, &settings))
+            .collect();
+        let restarts = match self.protocol {
+            Protocol::Default => self.robust.restarts_for(n_total),
+            Protocol::Study => 1,
+        };
+        // every (output, restart) job in parallel; results in order
+        let jobs: Vec<(usize, usize)> = (0..data.len())
+            .flat_map(|o| (0..restarts).map(move |r| (o, r)))
+            .collect();
+        let results: Vec<Restart> = jobs
+            .par_iter()
+            .map(|&(o, r)| {
+                let seed = stream_seed(self.seed, (o as u64) << 32 | r as u64);
+                self.fit_one(&data[o], &settings, seed)
+            })
+            .collect();
+        let size = match self.protocol {
+            Protocol::Default => self.robust.ensemble_size(n_total),
+            Protocol::Study => 1,
+        };
+        let mut outputs = Vec::new();
+        for (o, d) in data.into_iter().enumerate() {
+            let mine = &results[o * restarts..(o + 1) * restarts];
+            outputs.push(self.output_model(o, d, mine, size)?);
+        }
+        Ok(FittedNarx {
+            config: self.clone(),
+            input_scaling,
+            outputs,
+            train_seconds: t0.elapsed().as_secs_f64(),
+            feature_selection: None,
+        })
+    }
+
+    /// The records carry the configuration's columns, are long enough for the lags, share one
+    /// sampling period, and no output is constant over all of them.
+    fn check_training(&self, records: &[IoRecord]) -> Result<(), NarxError> {
+        let Some(first) = records.first() else {
+            return Err(NarxError::InvalidConfig {
+                field: "records",
+                value: "0".into(),
+                rule: "at least one training record is needed",
+            });
+        };
+        let start = self.lags.start();
+        for rec in records {
+            for (what, expected, found) in [
+                ("input", &self.inputs, rec.input_names()),
+                ("output", &self.outputs, rec.output_names()),
+            ] {
+                if found != *expected {
+                    return Err(NarxError::ColumnMismatch {
+                        path: rec.path.clone(),
+                        what,
+                        expected: names_str(expected),
+                        found: names_str(&found),
+                    });
+                }
+            }
+            let needed = start + 2;
+            if rec.len() < needed {
+                return Err(NarxError::TooShort {
+                    path: rec.path.clone(),
+                    rows: rec.len(),
+                    needed,
+                    why: format!(
+                        "{} output lags, {} input lags with delay {} need {} initial samples, plus at least 2 to train on",
+                        self.lags.output, self.lags.input, self.lags.delay, start
+                    ),
+                });
+            }
+            if (rec.ts - first.ts).abs() > 1e-9 * first.ts {
+                return Err(NarxError::InvalidConfig {
+                    field: "records",
+                    value: format!(
+                        "{} s in {}, {} s in {}",
+                        rec.ts,
+                        rec.path.display(),
+                        first.ts,
+                        first.path.display()
+                    ),
+                    rule: "all training records must share one sampling period",
+                });
+            }
+        }
+        for (o, name) in self.outputs.iter().enumerate() {
+            let value = first.outputs[o].values[0];
+            if records
+                .iter()
+                .all(|r| r.outputs[o].values.iter().all(|v| *v == value))
+            {
+                return Err(NarxError::ConstantOutput {
+                    path: first.path.clone(),
+                    name: name.clone(),
+                    value,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Output `o`'s scaling, regressor, designs and validation runs over all records.
+    fn output_data(
+        &self,
+        records: &[IoRecord],
+        u_std: &[Vec<Vec<f64>>],
+        o: usize,
+        r: &RobustSettings,
+    ) -> OutputData {
+        let start = self.lags.start();
+        let ys: Vec<&[f64]> = records.iter().map(|r| &r.outputs[o].values[..]).collect();
+        let all_y = pooled(&ys);
+        let scaling = Standardiser::fit(&all_y);
+        let series: Vec<Series> = ys
+            .iter()
+            .zip(u_std)
+            .map(|(y, u)| Series {
+                y: scaling.apply(y),
+                u: u.clone(),
+            })
+            .collect();
+        let reg = match self.protocol {
+            Protocol::Study => Regressor::fit(self.lags, RegressorForm::Lagged, &series[0]),
+            Protocol::Default => Regressor {
+                lags: self.lags,
+                form: RegressorForm::Incremental,
+                dy_gain: pooled_diff_gain(&series.iter().map(|s| &s.y[..]).collect::<Vec<_>>()),
+                du_gain: (0..u_std[0].len())
+                    .map(|j| {
+                        pooled_diff_gain(&series.iter().map(|s| &s.u[j][..]).collect::<Vec<_>>())
+                    })
+                    .collect(),
+            },
+        };
+        let parts: Vec<Part> = series
+            .into_iter()
+            .map(|s| {
+                let n = s.len();
+                let n_val = (n as f64 * r.validation_fraction).round() as usize;
+                // validation needs a few samples beyond the initial lags; otherwise score on all
+                let has_val =
+                    self.protocol == Protocol::Default && n_val >= 8 && n - n_val >= start + 8;
+                let (fit_end, val_from) = if has_val {
+                    (n - n_val, n - n_val)
+                } else {
+                    (n, start)
+                };
+                // The validation free run starts half-way into the fitting part (away from any
+                // start-up transient) and is scored on the validation part.
+                let sim_from = (fit_end / 2).max(start).min(val_from);
+                Part {
+                    val: s.slice(sim_from - start..n),
+                    val_from: val_from + start - sim_from,
+                    s,
+                    fit_end,
+                }
+            })
+            .collect();
+        let d_fit = stack(
+            parts
+                .iter()
+                .map(|p| Design::new(&p.s.slice(0..p.fit_end), &reg))
+                .collect(),
+        );
+        let vals: Vec<Design> = parts
+            .iter()
+            .filter(|p| p.fit_end < p.s.len())
+            .map(|p| Design::new(&p.s.slice(p.fit_end - start..p.s.len()), &reg))
+            .collect();
+        let d_val = (!vals.is_empty()).then(|| stack(vals));
+        let zs: Vec<&[f64]> = parts.iter().map(|p| &p.s.y[..]).collect();
+        let (lo, hi) = plausible_range(&pooled(&zs));
+        OutputData {
+            scaling,
+            reg,
+            d_fit,
+            d_val,
+            lo,
+            hi,
+            train_min: all_y.iter().copied().fold(f64::INFINITY, f64::min),
+            train_max: all_y.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            parts,
+        }
+    }
+
+    /// One restart for one output.
+    fn fit_one(&self, d: &OutputData, r: &RobustSettings, seed: u64) -> Restart {
+        let fit_samples: usize = d.parts.iter().map(|p| p.fit_end).sum();
+        let samples: usize = d.parts.iter().map(|p| p.s.len()).sum();
+        if self.protocol == Protocol::Study {
+            let mut net = self.network(false, stream_seed(seed, 1));
+            let rec = train_one_step(
+                &mut net,
+                &d.d_fit,
+                None,
+                self.optimizer,
+                self.lr,
+                self.batch,
+                self.epochs,
+                None,
+                stream_seed(seed, 2),
+            );
+            let record = RestartRecord {
+                seed,
+                one_step: rec,
+                simulation: None,
+                selection_mse: None,
+            };
+            return (net, record, samples, 0);
+        }
+        let mut net = self.network(r.bypass, stream_seed(seed, 1));
+        init_output_layer(&mut net, &d.d_fit, 1e-8);
+        let one_step = train_one_step(
+            &mut net,
+            &d.d_fit,
+            d.d_val.as_ref().or(Some(&d.d_fit)),
+            self.optimizer,
+            self.lr,
+            self.batch,
+            self.epochs,
+            Some(r.patience),
+            stream_seed(seed, 2),
+        );
+        let (rounds, per) = if d.parts.len() == 1 {
+            (1, r.clone())
+        } else {
+            let mut per = r.clone();
+            per.sim_steps = (r.sim_steps / (ROUNDS * d.parts.len())).max(r.eval_every);
+            (ROUNDS, per)
+        };
+        let mut simulation = None;
+        for round in 0..rounds {
+            for (i, p) in d.parts.iter().enumerate() {
+                let job = (round * d.parts.len() + i) as u64;
+                simulation = Some(train_simulation_error(
+                    &mut net,
+                    &d.reg,
+                    &p.s,
+                    p.fit_end,
+                    &p.val,
+                    p.val_from,
+                    d.lo,
+                    d.hi,
+                    &per,
+                    stream_seed(seed, 3 + job),
+                ));
+            }
+        }
+        let mut sum = 0.0;
+        let mut selection_mse = Some(());
+        for p in &d.parts {
+            match free_run_score(&net, &d.reg, &p.val, p.val_from, d.lo, d.hi) {
+                Some(m) => sum += m,
+                None => selection_mse = None,
+            }
+        }
+        let record = RestartRecord {
+            seed,
+            one_step,
+            simulation,
+            selection_mse: selection_mse.map(|_| sum / d.parts.len() as f64),
+        };
+        (net, record, fit_samples, samples - fit_samples)
+    }
+
+    /// Output `o`'s model from its restarts: the best one, and the ensemble of `size`.
+    fn output_model(
+        &self,
+        o: usize,
+        d: OutputData,
+        mine: &[Restart],
+        size: usize,
+    ) -> Result<OutputModel, NarxError> {
+        let name = &self.outputs[o];
+        let chosen = best_restart(mine.iter().map(|r| &r.1));
+        let net = mine[chosen].0.clone();
+        if !net.params.iter().all(|p| p.is_finite()) {
+            return Err(NarxError::NonFiniteWeights {
+                output: name.clone(),
+                lr: self.lr,
+            });
+        }
+        let members = choose_ensemble(mine, chosen, size);
+        let ensemble: Vec<Mlp> = members.iter().skip(1).map(|&i| mine[i].0.clone()).collect();
+        Ok(OutputModel {
+            name: name.clone(),
+            scaling: d.scaling,
+            train_min: d.train_min,
+            train_max: d.train_max,
+            regressor: d.reg,
+            network: net,
+            ensemble,
+            training: OutputTraining {
+                train_samples: mine[chosen].2,
+                validation_samples: mine[chosen].3,
+                restarts: mine.iter().map(|r| r.1.clone()).collect(),
+                chosen_restart: chosen,
+                ensemble_restarts: if members.len() > 1 {
+                    members
+                } else {
+                    Vec::new()
+                },
+            },
+        })
+    }
+}
+
+/// The restarts kept for one output: `chosen` first, then the others by their free-run
+/// selection MSE (diverged ones left out), at most `size` (training record only).
+fn choose_ensemble(mine: &[Restart], chosen: usize, size: usize) -> Vec<usize> {
+    let mut ranked: Vec<(usize, f64)> = mine
+        .iter()
+        .enumerate()
+        .filter_map(|(i, r)| {
+            let ok = r.0.params.iter().all(|p| p.is_finite());
+            r.1.selection_mse.filter(|_| ok).map(|m| (i, m))
+        })
+        .collect();
+    // stable sort: equal errors keep restart order
+    ranked.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let mut order: Vec<usize> = vec![chosen];
+    order.extend(ranked.iter().map(|r| r.0).filter(|&i| i != chosen));
+    order.truncate(size.max(1));
+    order
+}
+
+/// The training range widened by [`DIVERGENCE_RANGES`] ranges on each side.
+fn plausible_range(y: &[f64]) -> (f64, f64) {
+    let lo = y.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = y.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let r = (hi - lo).max(f64::MIN_POSITIVE);
+    (lo - DIVERGENCE_RANGES * r, hi + DIVERGENCE_RANGES * r)
+}
