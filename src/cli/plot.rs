@@ -154,7 +154,8 @@ fn load(path: &Path, c: &ColumnArgs) -> anyhow::Result<PlotRecord> {
     Ok(r.window(c.from, c.to)?)
 }
 
-/// Run `hystbench plot`.
+/// Run `hystbench plot`. (Long on purpose: one arm per figure kind, each reading its inputs and
+/// building its figure.)
 pub fn run(args: PlotArgs) -> anyhow::Result<()> {
     let out = match &args.kind {
         Kind::Loop { out, .. }

@@ -72,6 +72,8 @@ fn solve_subset(g: &DMatrix<f64>, b: &[f64], set: &[usize]) -> (Vec<f64>, DMatri
 }
 
 /// Solve the problem given G = Psi^T Psi, b = Psi^T y and which coefficients must be >= 0.
+/// (Long on purpose: Lawson and Hanson's algorithm NNLS step by step, as in the book, so that
+/// it can be checked against it.)
 pub fn nnls_gram(g: &DMatrix<f64>, b: &DVector<f64>, constrained: &[bool]) -> NnlsSolution {
     let m = g.nrows();
     let scale: Vec<f64> = (0..m)

@@ -243,145 +243,149 @@ impl Figure for SweepFigure {
         colour_bar(&bar, lo, hi, "free-run test R²")?;
         let (cols, rows) = self.panels();
         let areas = main.split_evenly((rows, cols));
-        let (nx, ny) = (self.lags.len(), self.neurons.len());
         let mut a = 0;
         for out in &self.outputs {
             for &lr in &self.lrs {
                 for &batch in &self.batches {
-                    let area = &areas[a];
+                    self.draw_panel(&areas[a], out, lr, batch, (lo, hi))?;
                     a += 1;
-                    let (pw, ph) = area.dim_in_pixel();
-                    let cell_w = (pw.saturating_sub(style::px(150))) / nx.max(1) as u32;
-                    let cell_h = (ph.saturating_sub(style::px(160))) / ny.max(1) as u32;
-                    let text_size = (cell_w / 5)
-                        .min(cell_h / 3)
-                        .clamp(style::px(10), style::px(22));
-                    let mut caption = format!("lr = {}, batch = {batch}", lr_label(lr));
-                    if self.outputs.len() > 1 {
-                        caption = format!("{out}: {caption}");
-                    }
-                    let mut chart = ChartBuilder::on(area)
-                        .margin(style::px(16))
-                        .margin_right(style::px(24))
-                        .caption(caption, (FONT, style::px(style::CAPTION_SIZE)))
-                        .x_label_area_size(style::px(70))
-                        .y_label_area_size(style::px(90))
-                        .build_cartesian_2d(
-                            (0..nx as i32 - 1).into_segmented(),
-                            (0..ny as i32 - 1).into_segmented(),
-                        )
-                        .map_err(render_err)?;
-                    let lags = &self.lags;
-                    let neurons = &self.neurons;
-                    let xf = |v: &SegmentValue<i32>| match v {
-                        SegmentValue::CenterOf(i) => {
-                            lags.get(*i as usize).map_or(String::new(), u64::to_string)
-                        }
-                        _ => String::new(),
-                    };
-                    let yf = |v: &SegmentValue<i32>| match v {
-                        SegmentValue::CenterOf(i) => neurons
-                            .get(*i as usize)
-                            .map_or(String::new(), u64::to_string),
-                        _ => String::new(),
-                    };
-                    chart
-                        .configure_mesh()
-                        .disable_mesh()
-                        .axis_style(BLACK.stroke_width(style::px(1)))
-                        .set_all_tick_mark_size(style::px(6))
-                        .x_labels(nx + 1)
-                        .y_labels(ny + 1)
-                        .x_label_formatter(&xf)
-                        .y_label_formatter(&yf)
-                        .label_style((FONT, style::px(style::TICK_SIZE)))
-                        .axis_desc_style((FONT, style::px(style::LABEL_SIZE)))
-                        .x_desc("lags")
-                        .y_desc("neurons")
-                        .draw()
-                        .map_err(render_err)?;
-                    for (ix, &lg) in self.lags.iter().enumerate() {
-                        for (iy, &nn) in self.neurons.iter().enumerate() {
-                            let cell = self.cell(out, lr, batch, lg, nn);
-                            let (fill, line1, line2) = match &cell {
-                                None => (style::MISSING, "–".to_string(), String::new()),
-                                Some(c) => match c.r2 {
-                                    None => (
-                                        style::DIVERGED,
-                                        "diverged".to_string(),
-                                        fmt_seconds(c.seconds),
-                                    ),
-                                    Some(r2) => {
-                                        let x = (r2.max(-1.0) - lo) / (hi - lo);
-                                        let mut l2 = fmt_seconds(c.seconds);
-                                        if c.diverged > 0 {
-                                            l2 = format!("{l2}, {}/{} div.", c.diverged, c.runs);
-                                        }
-                                        (viridis(x), format!("{r2:.3}"), l2)
-                                    }
-                                },
-                            };
-                            let (x0, y0) = (
-                                SegmentValue::Exact(ix as i32),
-                                SegmentValue::Exact(iy as i32),
-                            );
-                            let (x1, y1) = (
-                                SegmentValue::Exact(ix as i32 + 1),
-                                SegmentValue::Exact(iy as i32 + 1),
-                            );
-                            chart
-                                .draw_series(std::iter::once(Rectangle::new(
-                                    [(x0, y0), (x1, y1)],
-                                    fill.filled(),
-                                )))
-                                .map_err(render_err)?;
-                            chart
-                                .draw_series(std::iter::once(Rectangle::new(
-                                    [
-                                        (
-                                            SegmentValue::Exact(ix as i32),
-                                            SegmentValue::Exact(iy as i32),
-                                        ),
-                                        (
-                                            SegmentValue::Exact(ix as i32 + 1),
-                                            SegmentValue::Exact(iy as i32 + 1),
-                                        ),
-                                    ],
-                                    WHITE.stroke_width(style::px(2)),
-                                )))
-                                .map_err(render_err)?;
-                            let light = (fill.0 as u32 + fill.1 as u32 + fill.2 as u32) > 3 * 150;
-                            let tc = if light { BLACK } else { WHITE };
-                            let centre = (
-                                SegmentValue::CenterOf(ix as i32),
-                                SegmentValue::CenterOf(iy as i32),
-                            );
-                            let st = (FONT, text_size)
-                                .into_font()
-                                .color(&tc)
-                                .pos(Pos::new(HPos::Center, VPos::Center));
-                            let st2 = (FONT, (text_size * 3 / 4).max(style::px(10)))
-                                .into_font()
-                                .color(&tc)
-                                .pos(Pos::new(HPos::Center, VPos::Center));
-                            let dy = (text_size as i32 * 2) / 3;
-                            chart
-                                .draw_series(std::iter::once(
-                                    EmptyElement::at(centre)
-                                        + Text::new(
-                                            line1,
-                                            (0, if line2.is_empty() { 0 } else { -dy }),
-                                            st,
-                                        )
-                                        + Text::new(line2, (0, dy), st2),
-                                ))
-                                .map_err(render_err)?;
-                        }
-                    }
                 }
             }
         }
         Ok(())
+    }
+}
+
+impl SweepFigure {
+    /// One heat map: free-run test R^2 over lags (x) and neurons (y) for one output, learning
+    /// rate and batch size.
+    fn draw_panel<DB: DrawingBackend>(
+        &self,
+        area: &DrawingArea<DB, Shift>,
+        out: &str,
+        lr: f64,
+        batch: u64,
+        (lo, hi): (f64, f64),
+    ) -> Result<(), PlotError> {
+        let (nx, ny) = (self.lags.len(), self.neurons.len());
+        let (pw, ph) = area.dim_in_pixel();
+        let cell_w = (pw.saturating_sub(style::px(150))) / nx.max(1) as u32;
+        let cell_h = (ph.saturating_sub(style::px(160))) / ny.max(1) as u32;
+        let text_size = (cell_w / 5)
+            .min(cell_h / 3)
+            .clamp(style::px(10), style::px(22));
+        let mut caption = format!("lr = {}, batch = {batch}", lr_label(lr));
+        if self.outputs.len() > 1 {
+            caption = format!("{out}: {caption}");
+        }
+        let mut chart = ChartBuilder::on(area)
+            .margin(style::px(16))
+            .margin_right(style::px(24))
+            .caption(caption, (FONT, style::px(style::CAPTION_SIZE)))
+            .x_label_area_size(style::px(70))
+            .y_label_area_size(style::px(90))
+            .build_cartesian_2d(
+                (0..nx as i32 - 1).into_segmented(),
+                (0..ny as i32 - 1).into_segmented(),
+            )
+            .map_err(render_err)?;
+        let lags = &self.lags;
+        let neurons = &self.neurons;
+        let xf = |v: &SegmentValue<i32>| match v {
+            SegmentValue::CenterOf(i) => {
+                lags.get(*i as usize).map_or(String::new(), u64::to_string)
+            }
+            _ => String::new(),
+        };
+        let yf = |v: &SegmentValue<i32>| match v {
+            SegmentValue::CenterOf(i) => neurons
+                .get(*i as usize)
+                .map_or(String::new(), u64::to_string),
+            _ => String::new(),
+        };
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .axis_style(BLACK.stroke_width(style::px(1)))
+            .set_all_tick_mark_size(style::px(6))
+            .x_labels(nx + 1)
+            .y_labels(ny + 1)
+            .x_label_formatter(&xf)
+            .y_label_formatter(&yf)
+            .label_style((FONT, style::px(style::TICK_SIZE)))
+            .axis_desc_style((FONT, style::px(style::LABEL_SIZE)))
+            .x_desc("lags")
+            .y_desc("neurons")
+            .draw()
+            .map_err(render_err)?;
+        for (ix, &lg) in self.lags.iter().enumerate() {
+            for (iy, &nn) in self.neurons.iter().enumerate() {
+                let (fill, line1, line2) = cell_look(self.cell(out, lr, batch, lg, nn), lo, hi);
+                let (x0, y0) = (
+                    SegmentValue::Exact(ix as i32),
+                    SegmentValue::Exact(iy as i32),
+                );
+                let (x1, y1) = (
+                    SegmentValue::Exact(ix as i32 + 1),
+                    SegmentValue::Exact(iy as i32 + 1),
+                );
+                chart
+                    .draw_series([
+                        Rectangle::new(
+                            [(x0.clone(), y0.clone()), (x1.clone(), y1.clone())],
+                            fill.filled(),
+                        ),
+                        Rectangle::new([(x0, y0), (x1, y1)], WHITE.stroke_width(style::px(2))),
+                    ])
+                    .map_err(render_err)?;
+                let light = (fill.0 as u32 + fill.1 as u32 + fill.2 as u32) > 3 * 150;
+                let tc = if light { BLACK } else { WHITE };
+                let centre = (
+                    SegmentValue::CenterOf(ix as i32),
+                    SegmentValue::CenterOf(iy as i32),
+                );
+                let st = (FONT, text_size)
+                    .into_font()
+                    .color(&tc)
+                    .pos(Pos::new(HPos::Center, VPos::Center));
+                let st2 = (FONT, (text_size * 3 / 4).max(style::px(10)))
+                    .into_font()
+                    .color(&tc)
+                    .pos(Pos::new(HPos::Center, VPos::Center));
+                let dy = (text_size as i32 * 2) / 3;
+                chart
+                    .draw_series(std::iter::once(
+                        EmptyElement::at(centre)
+                            + Text::new(line1, (0, if line2.is_empty() { 0 } else { -dy }), st)
+                            + Text::new(line2, (0, dy), st2),
+                    ))
+                    .map_err(render_err)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A cell's colour and its two text lines (R^2; time and diverged runs), for the colour range
+/// `lo..hi`.
+fn cell_look(cell: Option<Cell>, lo: f64, hi: f64) -> (RGBColor, String, String) {
+    match cell {
+        None => (style::MISSING, "–".to_string(), String::new()),
+        Some(c) => match c.r2 {
+            None => (
+                style::DIVERGED,
+                "diverged".to_string(),
+                fmt_seconds(c.seconds),
+            ),
+            Some(r2) => {
+                let x = (r2.max(-1.0) - lo) / (hi - lo);
+                let mut l2 = fmt_seconds(c.seconds);
+                if c.diverged > 0 {
+                    l2 = format!("{l2}, {}/{} div.", c.diverged, c.runs);
+                }
+                (viridis(x), format!("{r2:.3}"), l2)
+            }
+        },
     }
 }
 

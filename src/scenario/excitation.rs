@@ -164,6 +164,8 @@ fn nyquist(field: &str, name: &str, f: f64, ts: f64) -> Result<(), Problem> {
 
 impl ExcitationSpec {
     /// Check parameters against the scenario's sampling and length; `field` is the path so far.
+    ///
+    /// Long on purpose: one short arm per excitation kind, read as a table of rules.
     pub fn check(&self, field: &str, ctx: &Context) -> Result<(), Problem> {
         let dur = ctx.n as f64 * ctx.ts;
         match self {
@@ -417,6 +419,8 @@ impl ExcitationSpec {
 
     /// Generate `ctx.n` samples; random parts draw from stream `stream` of the seed.
     /// Only call after [`ExcitationSpec::check`].
+    ///
+    /// Long on purpose: one arm per excitation kind, each its defining formula.
     pub fn generate(&self, ctx: &Context, stream: u64) -> Result<Vec<f64>, Problem> {
         let n = ctx.n;
         let ts = ctx.ts;

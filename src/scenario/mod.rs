@@ -102,7 +102,8 @@ impl ScenarioSpec {
         crate::data::parse_json(text).map_err(|e| json_error(path, e))
     }
 
-    /// Check; relative CSV inputs are looked up beside `path`.
+    /// Check; relative CSV inputs are looked up beside `path`. (Long on purpose: the scenario's
+    /// fields checked in file order, one rule each.)
     pub fn check(&self, path: &Path) -> Result<Scenario, ScenarioError> {
         let invalid = |field: &str, value: String, rule: &str| ScenarioError::Invalid {
             path: path.to_path_buf(),
