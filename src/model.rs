@@ -13,13 +13,9 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ModelError {
-    #[error("{path}: cannot read: {source}")]
-    Read {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    #[error("{path}: not a model file: {message}")]
-    Json { path: PathBuf, message: String },
+    /// The file cannot be read, or its JSON does not parse (with the line and column).
+    #[error(transparent)]
+    File(#[from] crate::data::JsonFileError),
     #[error("{path}: unknown model format `{found}`; known: {known}")]
     UnknownFormat {
         path: PathBuf,
@@ -203,15 +199,8 @@ pub fn predict_finite(model: &dyn Model, io: &IoRecord) -> Result<Vec<Vec<f64>>,
 
 /// Read a model file: a plant file, or a model file with a `format` field.
 pub fn load_model(path: &Path) -> Result<Box<dyn Model>, ModelError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ModelError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| ModelError::Json {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
-    match v.get("format").and_then(|f| f.as_str()) {
+    let text = crate::data::read_json_text(path)?;
+    match crate::data::FileHeader::read(path, &text)?.format_str() {
         None => Ok(Box::new(PlantSpec::parse(path, &text)?.check(path)?)),
         Some(crate::graybox::FORMAT) => {
             Ok(Box::new(crate::graybox::FittedGreyBox::parse(path, &text)?))

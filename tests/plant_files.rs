@@ -2,6 +2,7 @@
 //! refuses unknown, repeated, missing and misplaced keys (as the derived one did) and keeps the
 //! position of a nested error; a plant built in code is checked like a file.
 
+use hystbench::data::JsonFileError;
 use hystbench::plant::{PlantError, PlantSpec};
 use std::path::Path;
 
@@ -44,7 +45,7 @@ fn unknown_repeated_missing_and_misplaced_keys_are_refused() {
     // the position of a nested error is kept (line 3 here)
     let text = "{\"name\":\"p\",\"inputs\":[\"u\"],\"outputs\":[{\"name\":\"y\",\n\"paths\":[{\"input\":\"u\",\n\"hysteresis\":{\"linear\":{\"gain\":\"x\"}}}]}]}";
     match PlantSpec::parse(Path::new("p.json"), text) {
-        Err(PlantError::Json { line, .. }) => assert_eq!(line, 3),
+        Err(PlantError::File(JsonFileError::Parse { line, .. })) => assert_eq!(line, 3),
         other => panic!("{other:?}"),
     }
     // null means absent, as with the derived reading

@@ -50,10 +50,28 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     prepare_report_folder(&a.out, a.force)?;
     let records = a.out.join("records");
     std::fs::create_dir_all(&records)?;
-    let mut md =
-        String::from("# hystbench demo\n\n## 1. Simulated plants (known ground truth)\n\n");
-    md += "| plant | scenario | samples | sampling rate | inputs -> outputs | output range | hysteresis width |\n";
-    md += "|---|---|---|---|---|---|---|\n";
+    let mut md = String::from("# hystbench demo\n");
+    simulate_plants(&records, &mut md)?;
+    identify_records(&records, &mut md)?;
+    hidden_effect(&a.out, &records, &mut md)?;
+    let _ = writeln!(
+        md,
+        "\nMade by `hystbench demo` {} in {:.1} s.",
+        env!("CARGO_PKG_VERSION"),
+        t0.elapsed().as_secs_f64()
+    );
+    let report = a.out.join("README.md");
+    hystbench::data::write_atomic(&report, md.as_bytes(), true)?;
+    crate::cli::print(&md);
+    crate::cli::print(&format!("report: {}", report.display()));
+    Ok(())
+}
+
+/// 1. Simulates the shipped plants on their default scenarios into `records` (CSV and figures).
+fn simulate_plants(records: &Path, md: &mut String) -> anyhow::Result<()> {
+    *md += "\n## 1. Simulated plants (known ground truth)\n\n";
+    *md += "| plant | scenario | samples | sampling rate | inputs -> outputs | output range | hysteresis width |\n";
+    *md += "|---|---|---|---|---|---|---|\n";
     eprintln!("1. simulating the shipped plants on their default scenarios");
     for (plant_file, plant_json, scen_file, scen_json) in BUILTIN {
         let ppath = Path::new("plants").join(plant_file);
@@ -67,7 +85,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let units = &plant.units;
         let rec = hystbench::plot::PlotRecord::from_io(plant.name.clone(), r.clone())
             .with_units(&units.input, &units.output);
-        hystbench::plot::report_figures(&rec, &records, &format!("{}_", plant.name), true)?;
+        hystbench::plot::report_figures(&rec, records, &format!("{}_", plant.name), true)?;
         for (o, y) in r.outputs.iter().enumerate() {
             // the direct input of this output (same index, or the only input)
             let u = &r.inputs[o.min(r.inputs.len() - 1)];
@@ -87,12 +105,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         eprintln!("   {} -> {}", plant.name, out.display());
     }
-    md += "\nLoops: `records/<plant>_loop.png`.\n";
-    md += "\nHysteresis width: largest gap between the falling and rising branches over 40 input bins, in % of the output range.\n";
+    *md += "\nLoops: `records/<plant>_loop.png`.\n";
+    *md += "\nHysteresis width: largest gap between the falling and rising branches over 40 input bins, in % of the output range.\n";
+    Ok(())
+}
 
+/// 2. Identifies the simulated records with the default NARX (first half trains).
+fn identify_records(records: &Path, md: &mut String) -> anyhow::Result<()> {
     eprintln!("2. identifying them with the NARX network (default protocol, first half trains, second half tests)");
-    md += "\n## 2. Identification: NARX free run on the test half\n\n";
-    md += "| record | output | one-step R^2 (test) | free-run R^2 (test) | target | met | train time |\n|---|---|---|---|---|---|---|\n";
+    *md += "\n## 2. Identification: NARX free run on the test half\n\n";
+    *md += "| record | output | one-step R^2 (test) | free-run R^2 (test) | target | met | train time |\n|---|---|---|---|---|---|---|\n";
     for (name, target) in [
         ("bouc_wen_piezo", 0.999),
         ("prandtl_ishlinskii_piezo", 0.999),
@@ -127,18 +149,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             );
         }
     }
+    Ok(())
+}
 
+/// 3. The hidden-effect loop: a grey-box start without creep, then `improve`.
+fn hidden_effect(out: &Path, records: &Path, md: &mut String) -> anyhow::Result<()> {
     eprintln!("3. a record with a hidden effect: compare, diagnose, add it, watch the error fall");
-    md += "\n## 3. A hidden effect: diagnose, add, watch the error fall\n\n";
+    *md += "\n## 3. A hidden effect: diagnose, add, watch the error fall\n\n";
     let hidden = records.join("hidden_creep_piezo.csv");
     let rec = hystbench::data::read_csv(&hidden)?;
     let io = hystbench::data::IoRecord::from_record(&rec, None, None, true)?;
     let start =
         hystbench::graybox::GreyBoxConfig::from_effect_list("hysteresis,dynamics")?.fit(&io)?;
-    let start_file = a.out.join("hidden_start_model.json");
+    let start_file = out.join("hidden_start_model.json");
     start.save(&start_file, true)?;
-    let improve_dir = a.out.join("improve");
-    md += "The record `records/hidden_creep_piezo.csv` comes from a plant with creep; the starting model is a grey-box fit with hysteresis and dynamics only (`hidden_start_model.json`). `hystbench improve` then diagnoses it, adds what is missing and refits:\n\n";
+    let improve_dir = out.join("improve");
+    *md += "The record `records/hidden_creep_piezo.csv` comes from a plant with creep; the starting model is a grey-box fit with hysteresis and dynamics only (`hidden_start_model.json`). `hystbench improve` then diagnoses it, adds what is missing and refits:\n\n";
     crate::cli::improve::run(crate::cli::improve::Args {
         data: hidden,
         model: start_file,
@@ -155,17 +181,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .filter(|l| l.starts_with('|'))
         .map(|l| format!("{l}\n"))
         .collect();
-    md += &table;
-    md += "\n![ladder](improve/ladder.png)\n\nFull report: `improve/report.md`.\n";
-    let _ = writeln!(
-        md,
-        "\nMade by `hystbench demo` {} in {:.1} s.",
-        env!("CARGO_PKG_VERSION"),
-        t0.elapsed().as_secs_f64()
-    );
-    let report = a.out.join("README.md");
-    hystbench::data::write_atomic(&report, md.as_bytes(), true)?;
-    crate::cli::print(&md);
-    crate::cli::print(&format!("report: {}", report.display()));
+    *md += &table;
+    *md += "\n![ladder](improve/ladder.png)\n\nFull report: `improve/report.md`.\n";
     Ok(())
 }

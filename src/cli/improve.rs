@@ -3,12 +3,14 @@
 //! print and plot the ladder of errors.
 
 use crate::cli::compare::write_figures;
-use hystbench::data::read_csv;
+use hystbench::data::{read_csv, IoRecord};
 use hystbench::diagnose::unit_of;
-use hystbench::improve::{effect_list, improve, start_config, ImproveOptions, Ladder, Progress};
+use hystbench::improve::{
+    effect_list, improve, start_config, ImproveOptions, Ladder, Progress, Rung,
+};
 use hystbench::model::{load_model, Model};
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Diagnose, add the missing effect, refit, repeat; write the ladder of errors.
 #[derive(Debug, clap::Args)]
@@ -115,9 +117,33 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         r.model_file = model_file.clone();
     }
-    // ladder.csv and figures
+    let ladder = a.out.join("ladder.csv");
+    hystbench::data::write_atomic(&ladder, ladder_csv(&rungs).as_bytes(), true)?;
+    hystbench::plot::ladder_figure(
+        &ladder,
+        Some("Model improvement: free-run RMS error per step".into()),
+        &a.out.join("ladder.png"),
+        None,
+        true,
+    )?;
+    let figures = write_figures(&a.out, &io_all, &pred)?;
+    let md = report(&a.data, &io_all, from, &rungs, &figures);
+    hystbench::data::write_atomic(&a.out.join("report.md"), md.as_bytes(), true)?;
+    if a.json {
+        crate::cli::print(&serde_json::to_string(
+            &serde_json::json!({ "ladder": rungs }),
+        )?);
+    } else {
+        crate::cli::print(&md);
+        crate::cli::print(&format!("report: {}", a.out.join("report.md").display()));
+    }
+    Ok(())
+}
+
+/// `ladder.csv`: one row per step (effects joined by `+`, `linear` for none).
+fn ladder_csv(rungs: &[Rung]) -> String {
     let mut csv = String::from("step,effects,rmse,r2\n");
-    for r in &rungs {
+    for r in rungs {
         let eff = if r.effects.is_empty() {
             "linear".to_string()
         } else {
@@ -135,22 +161,23 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             r.r2.map_or(String::new(), |v| v.to_string())
         );
     }
-    let ladder = a.out.join("ladder.csv");
-    hystbench::data::write_atomic(&ladder, csv.as_bytes(), true)?;
-    hystbench::plot::ladder_figure(
-        &ladder,
-        Some("Model improvement: free-run RMS error per step".into()),
-        &a.out.join("ladder.png"),
-        None,
-        true,
-    )?;
-    let figures = write_figures(&a.out, &io_all, &pred)?;
+    csv
+}
+
+/// `report.md`: the ladder as a table, with the figures.
+fn report(
+    data: &Path,
+    io_all: &IoRecord,
+    from: usize,
+    rungs: &[Rung],
+    figures: &[String],
+) -> String {
     let unit = io_all
         .outputs
         .first()
         .map(|s| unit_of(&s.name))
         .unwrap_or_default();
-    let mut md = format!("# Model improvement on {}\n\n", a.data.display());
+    let mut md = format!("# Model improvement on {}\n\n", data.display());
     if from > 0 {
         let _ = writeln!(
             md,
@@ -159,7 +186,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     md += "| step | effects | RMS error | R^2 | diagnosis: missing | predicted RMS with it | refitted with (RMS error) |\n|---|---|---|---|---|---|---|\n";
-    for r in &rungs {
+    for r in rungs {
         let _ = writeln!(
             md,
             "| {} | {} | {:.4} {unit} | {} | {} | {} | {} |",
@@ -180,16 +207,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     md += "\n![ladder](ladder.png)\n\n";
     for f in figures {
-        md += &format!("![{f}]({f})\n\n");
+        let _ = write!(md, "![{f}]({f})\n\n");
     }
-    hystbench::data::write_atomic(&a.out.join("report.md"), md.as_bytes(), true)?;
-    if a.json {
-        crate::cli::print(&serde_json::to_string(
-            &serde_json::json!({ "ladder": rungs }),
-        )?);
-    } else {
-        crate::cli::print(&md);
-        crate::cli::print(&format!("report: {}", a.out.join("report.md").display()));
-    }
-    Ok(())
+    md
 }

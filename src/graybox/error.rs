@@ -68,18 +68,9 @@ pub enum GreyBoxError {
         "the fit of output `{output}` produced a non-finite value ({what}); nothing was written"
     )]
     NonFinite { output: String, what: String },
-    #[error("{path}: cannot read: {source}")]
-    Read {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    #[error("{path}: line {line}, column {column}: not a valid model file: {message}")]
-    Json {
-        path: PathBuf,
-        line: usize,
-        column: usize,
-        message: String,
-    },
+    /// The file cannot be read, or its JSON does not parse (with the line and column).
+    #[error(transparent)]
+    File(#[from] crate::data::JsonFileError),
     #[error("{path}: not a grey-box model file (`format` is {found}; expected \"hystbench-greybox\"); a NARX model or a plant file is read by other commands")]
     WrongFormat { path: PathBuf, found: String },
     #[error("{path}: grey-box model file version {found} is not supported; this hystbench reads version {supported}")]

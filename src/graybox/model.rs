@@ -302,42 +302,32 @@ impl FittedGreyBox {
 
     /// Read and check a model file.
     pub fn load(path: &Path) -> Result<FittedGreyBox, GreyBoxError> {
-        let text = crate::data::read_text(path).map_err(|source| GreyBoxError::Read {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        Self::parse(path, &text)
+        Self::parse(path, &crate::data::read_json_text(path)?)
     }
 
     /// Parse a model file's text; `path` labels the errors.
     pub fn parse(path: &Path, text: &str) -> Result<FittedGreyBox, GreyBoxError> {
-        let json_err = |e: crate::data::JsonPosition| GreyBoxError::Json {
-            path: path.to_path_buf(),
-            line: e.line,
-            column: e.column,
-            message: e.message,
-        };
-        let v: serde_json::Value = crate::data::parse_json(text).map_err(json_err)?;
-        match v.get("format") {
+        let header = crate::data::FileHeader::read(path, text)?;
+        match &header.format {
             Some(serde_json::Value::String(s)) if s == FORMAT => {}
             other => {
                 return Err(GreyBoxError::WrongFormat {
                     path: path.to_path_buf(),
-                    found: other.map_or("missing".into(), |f| f.to_string()),
+                    found: other.as_ref().map_or("missing".into(), |f| f.to_string()),
                 })
             }
         }
-        match v.get("version") {
+        match &header.version {
             Some(n) if n.as_u64() == Some(VERSION as u64) => {}
             other => {
                 return Err(GreyBoxError::WrongVersion {
                     path: path.to_path_buf(),
-                    found: other.map_or("missing".into(), |f| f.to_string()),
+                    found: other.as_ref().map_or("missing".into(), |f| f.to_string()),
                     supported: VERSION,
                 })
             }
         }
-        let file: GreyBoxFile = crate::data::parse_json(text).map_err(json_err)?;
+        let file: GreyBoxFile = crate::data::parse_json_file(path, text)?;
         let plant = file.plant.check(path)?;
         let inconsistent = |field: &str, rule: String| GreyBoxError::Inconsistent {
             path: path.to_path_buf(),

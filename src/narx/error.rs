@@ -36,6 +36,11 @@ pub enum NarxError {
         "training of output `{output}` produced non-finite weights (learning rate {lr} too large?)"
     )]
     NonFiniteWeights { output: String, lr: f64 },
+    #[error("{path}: the linear least squares of output `{output}` has no unique solution (an input or the output does not vary, or the columns repeat each other); check the record's columns")]
+    Singular {
+        path: std::path::PathBuf,
+        output: String,
+    },
     #[error("{effect}: no basis signals for this record ({why})")]
     NoFeatures { effect: String, why: &'static str },
     #[error("{path}: not a hystbench NARX model file: {why}")]
@@ -48,9 +53,7 @@ pub enum NarxError {
     },
     #[error("{path}: damaged model file: {why}")]
     Damaged { path: PathBuf, why: String },
-    #[error("{path}: cannot read: {source}")]
-    Read {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    /// The file cannot be read, or its JSON does not parse (with the line and column).
+    #[error(transparent)]
+    File(#[from] crate::data::JsonFileError),
 }

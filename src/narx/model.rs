@@ -5,7 +5,7 @@ use super::mlp::Mlp;
 use super::regressors::{Regressor, Series, Standardiser};
 use super::train::{free_run_fast, Design, OneStepRecord, SimulationRecord};
 use super::NarxError;
-use crate::data::{parse_json, IoRecord, JsonPosition};
+use crate::data::{parse_json_file, read_json_text, FileHeader, IoRecord};
 use crate::effect::EffectName;
 use crate::effect::FeatureSpec;
 use crate::metrics::{scores, Scores};
@@ -320,16 +320,6 @@ impl FittedNarx {
 
     /// Read a model file; another format or version, or a damaged file, is a clear error.
     pub fn from_json(path: &Path, text: &str) -> Result<FittedNarx, NarxError> {
-        let damaged = |e: JsonPosition| NarxError::Damaged {
-            path: path.to_path_buf(),
-            why: format!("line {}, column {}: {}", e.line, e.column, e.message),
-        };
-        // the header first, so that another file kind or version is said as such
-        #[derive(Deserialize)]
-        struct Header {
-            format: Option<String>,
-            version: Option<serde_json::Value>,
-        }
         #[derive(Deserialize)]
         #[serde(deny_unknown_fields)]
         struct File {
@@ -339,8 +329,8 @@ impl FittedNarx {
             version: u32,
             model: FittedNarx,
         }
-        let header: Header = parse_json(text).map_err(damaged)?;
-        match header.format.as_deref() {
+        let header = FileHeader::read(path, text)?;
+        match header.format_str() {
             Some(FORMAT) => {}
             Some(other) => {
                 return Err(NarxError::NotAModel {
@@ -365,7 +355,7 @@ impl FittedNarx {
                 })
             }
         }
-        let m = parse_json::<File>(text).map_err(damaged)?.model;
+        let m = parse_json_file::<File>(path, text)?.model;
         m.validate().map_err(|why| NarxError::Damaged {
             path: path.to_path_buf(),
             why,
@@ -445,11 +435,7 @@ impl FittedNarx {
 
     /// Read a model file from disk.
     pub fn load(path: &Path) -> Result<FittedNarx, NarxError> {
-        let text = std::fs::read_to_string(path).map_err(|source| NarxError::Read {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        FittedNarx::from_json(path, &text)
+        FittedNarx::from_json(path, &read_json_text(path)?)
     }
 }
 

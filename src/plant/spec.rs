@@ -389,29 +389,15 @@ pub struct Plant {
     pub path: PathBuf,
 }
 
-/// A parse error that names the file, line and column.
-fn json_error(path: &Path, e: crate::data::JsonPosition) -> PlantError {
-    PlantError::Json {
-        path: path.to_path_buf(),
-        line: e.line,
-        column: e.column,
-        message: e.message,
-    }
-}
-
 impl PlantSpec {
     /// Read a plant file.
     pub fn read(path: &Path) -> Result<PlantSpec, PlantError> {
-        let text = crate::data::read_text(path).map_err(|source| PlantError::Read {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        Self::parse(path, &text)
+        Self::parse(path, &crate::data::read_json_text(path)?)
     }
 
     /// Parse plant JSON; `path` labels the errors.
     pub fn parse(path: &Path, text: &str) -> Result<PlantSpec, PlantError> {
-        crate::data::parse_json(text).map_err(|e| json_error(path, e))
+        Ok(crate::data::parse_json_file(path, text)?)
     }
 
     /// Check everything; `path` labels the errors.

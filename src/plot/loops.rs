@@ -191,6 +191,36 @@ impl Figure for LoopFigure<'_> {
 }
 
 impl LoopFigure<'_> {
+    /// The panel's axis ranges: every record's input `j` and output `i` (and its model), padded.
+    fn panel_ranges(&self, i: usize, j: usize) -> ((f64, f64), (f64, f64)) {
+        let mut xr = (f64::INFINITY, f64::NEG_INFINITY);
+        let mut yr = xr;
+        for r in self.records {
+            xr = axes::union(xr, axes::padded_range(&r.io.inputs[j].values, 0.04));
+            yr = axes::union(yr, axes::padded_range(&r.io.outputs[i].values, 0.04));
+            if let Some(p) = &r.predicted[i] {
+                yr = axes::union(yr, axes::padded_range(p, 0.04));
+            }
+        }
+        (xr, yr)
+    }
+
+    /// "direct: u1 → y1" / "cross: u2 → y1" on a figure of several panels; none on one.
+    fn panel_caption(&self, i: usize, j: usize) -> String {
+        if self.panels.len() <= 1 {
+            return String::new();
+        }
+        let io = &self.records[0].io;
+        let kind = if io.inputs.len() > 1 && i == j {
+            "direct: "
+        } else if io.inputs.len() > 1 {
+            "cross: "
+        } else {
+            ""
+        };
+        format!("{kind}{} → {}", io.inputs[j].name, io.outputs[i].name)
+    }
+
     fn draw_panel<DB: DrawingBackend>(
         &self,
         area: &DrawingArea<DB, Shift>,
@@ -201,30 +231,10 @@ impl LoopFigure<'_> {
     ) -> Result<(), PlotError> {
         let rec0 = &self.records[0];
         let (uname, yname) = (&rec0.io.inputs[j].name, &rec0.io.outputs[i].name);
-        let mut xr = (f64::INFINITY, f64::NEG_INFINITY);
-        let mut yr = xr;
-        for r in self.records {
-            xr = axes::union(xr, axes::padded_range(&r.io.inputs[j].values, 0.04));
-            yr = axes::union(yr, axes::padded_range(&r.io.outputs[i].values, 0.04));
-            if let Some(p) = &r.predicted[i] {
-                yr = axes::union(yr, axes::padded_range(p, 0.04));
-            }
-        }
-        let caption = if self.panels.len() > 1 {
-            let kind = if rec0.io.inputs.len() > 1 && i == j {
-                "direct: "
-            } else if rec0.io.inputs.len() > 1 {
-                "cross: "
-            } else {
-                ""
-            };
-            format!("{kind}{uname} → {yname}")
-        } else {
-            String::new()
-        };
+        let (xr, yr) = self.panel_ranges(i, j);
         let mut chart = axes::chart(
             area,
-            &caption,
+            &self.panel_caption(i, j),
             xr,
             yr,
             &rec0.quantity(uname).label(),
@@ -248,35 +258,7 @@ impl LoopFigure<'_> {
                 (false, _) => "measured".to_string(),
             };
             if ri == 0 && colour != LoopColour::Series {
-                let n = r.len();
-                let level = |k: usize| -> usize {
-                    match cycles {
-                        Some(c) => c[k] as usize,
-                        None => k * TIME_LEVELS / n,
-                    }
-                };
-                let top = match cycles {
-                    Some(c) => c.last().copied().unwrap_or(0).max(1) as f64,
-                    None => (TIME_LEVELS - 1) as f64,
-                };
-                let mut chunks: Vec<(usize, Vec<(f64, f64)>)> = Vec::new();
-                let mut prev: Option<(f64, f64)> = None;
-                for &k in &idx {
-                    let p = (u[k], y[k]);
-                    let l = level(k);
-                    match chunks.last_mut() {
-                        Some((cl, pts)) if *cl == l => pts.push(p),
-                        _ => {
-                            let mut pts = Vec::new();
-                            if let Some(q) = prev {
-                                pts.push(q);
-                            }
-                            pts.push(p);
-                            chunks.push((l, pts));
-                        }
-                    }
-                    prev = Some(p);
-                }
+                let (chunks, top) = coloured_by_level(u, y, &idx, cycles);
                 chart
                     .draw_series(chunks.into_iter().flat_map(|(l, pts)| {
                         axes::path_elements(
@@ -331,6 +313,50 @@ impl LoopFigure<'_> {
         }
         Ok(())
     }
+}
+
+/// A colour level and the loop points drawn in it.
+type LevelRun = (usize, Vec<(f64, f64)>);
+
+/// The loop's points (decimated to `idx`) cut into runs of one colour level (the time decile,
+/// or the cycle number when `cycles` is given), each run starting at the previous one's last
+/// point; and the top level.
+fn coloured_by_level(
+    u: &[f64],
+    y: &[f64],
+    idx: &[usize],
+    cycles: Option<&[u32]>,
+) -> (Vec<LevelRun>, f64) {
+    let n = u.len();
+    let level = |k: usize| -> usize {
+        match cycles {
+            Some(c) => c[k] as usize,
+            None => k * TIME_LEVELS / n,
+        }
+    };
+    let top = match cycles {
+        Some(c) => c.last().copied().unwrap_or(0).max(1) as f64,
+        None => (TIME_LEVELS - 1) as f64,
+    };
+    let mut chunks: Vec<LevelRun> = Vec::new();
+    let mut prev: Option<(f64, f64)> = None;
+    for &k in idx {
+        let p = (u[k], y[k]);
+        let l = level(k);
+        match chunks.last_mut() {
+            Some((cl, pts)) if *cl == l => pts.push(p),
+            _ => {
+                let mut pts = Vec::new();
+                if let Some(q) = prev {
+                    pts.push(q);
+                }
+                pts.push(p);
+                chunks.push((l, pts));
+            }
+        }
+        prev = Some(p);
+    }
+    (chunks, top)
 }
 
 /// Draw a loop figure of `records` to `path` (`.png` or `.svg`), atomically; an existing file is

@@ -4,18 +4,9 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ScenarioError {
-    #[error("{path}: cannot read: {source}")]
-    Read {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    #[error("{path}: line {line}, column {column}: {message}")]
-    Json {
-        path: PathBuf,
-        line: usize,
-        column: usize,
-        message: String,
-    },
+    /// The file cannot be read, or its JSON does not parse (with the line and column).
+    #[error(transparent)]
+    File(#[from] crate::data::JsonFileError),
     #[error("{path}: `{field}` = {value}: {rule}")]
     Invalid {
         path: PathBuf,

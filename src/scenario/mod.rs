@@ -77,29 +77,15 @@ pub struct Scenario {
     base_dir: PathBuf,
 }
 
-/// A parse error that names the file, line and column.
-fn json_error(path: &Path, e: crate::data::JsonPosition) -> ScenarioError {
-    ScenarioError::Json {
-        path: path.to_path_buf(),
-        line: e.line,
-        column: e.column,
-        message: e.message,
-    }
-}
-
 impl ScenarioSpec {
     /// Read a scenario file.
     pub fn read(path: &Path) -> Result<ScenarioSpec, ScenarioError> {
-        let text = crate::data::read_text(path).map_err(|source| ScenarioError::Read {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        Self::parse(path, &text)
+        Self::parse(path, &crate::data::read_json_text(path)?)
     }
 
     /// Parse scenario JSON; `path` labels the errors.
     pub fn parse(path: &Path, text: &str) -> Result<ScenarioSpec, ScenarioError> {
-        crate::data::parse_json(text).map_err(|e| json_error(path, e))
+        Ok(crate::data::parse_json_file(path, text)?)
     }
 
     /// Check; relative CSV inputs are looked up beside `path`. (Long on purpose: the scenario's
