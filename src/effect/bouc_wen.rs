@@ -59,6 +59,19 @@ pub struct BoucWen {
 }
 
 impl BoucWenSpec {
+    /// The unit loop of a Bouc-Wen state with shape B, Gamma: A = 1, no linear part, n = 1,
+    /// from rest (h scales with A, so a fit takes A as a linear coefficient).
+    pub fn unit(b: f64, gamma: f64) -> BoucWenSpec {
+        BoucWenSpec {
+            d: 0.0,
+            a: 1.0,
+            b,
+            gamma,
+            n: 1.0,
+            initial_h: 0.0,
+        }
+    }
+
     /// Check the stability and boundedness conditions.
     pub fn check(&self) -> Result<BoucWen, EffectError> {
         finite("d", self.d)?;

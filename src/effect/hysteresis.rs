@@ -180,14 +180,7 @@ fn plays_of(u: &[f64], thresholds: &[f64]) -> Vec<Vec<f64>> {
 
 /// -htilde for A = 1 (h is linear in A for fixed B and Gamma: the exact update scales with A).
 fn bouc_wen_column(u: &[f64], b: f64, gamma: f64) -> Vec<f64> {
-    let spec = BoucWenSpec {
-        d: 0.0,
-        a: 1.0,
-        b,
-        gamma,
-        n: 1.0,
-        initial_h: 0.0,
-    };
+    let spec = BoucWenSpec::unit(b, gamma);
     match spec.check() {
         Ok(p) => p.operator().apply(u),
         Err(_) => vec![f64::NAN; u.len()],

@@ -51,14 +51,7 @@ pub struct SpencerParams {
 
 /// Rate (mm/s) and Bouc-Wen state z (mm, A = 1) of a displacement from rest.
 pub fn states(x: &[f64], ts: f64, b: f64, gamma: f64) -> Option<(Vec<f64>, Vec<f64>)> {
-    let spec = BoucWenSpec {
-        d: 0.0,
-        a: 1.0,
-        b,
-        gamma,
-        n: 1.0,
-        initial_h: 0.0,
-    };
+    let spec = BoucWenSpec::unit(b, gamma);
     let p = spec.check().ok()?;
     // the operator gives y = d u - h = -h
     let z: Vec<f64> = p.operator().apply(x).into_iter().map(|v| -v).collect();
