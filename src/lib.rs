@@ -38,3 +38,4 @@ pub mod plot;
 pub mod scenario;
 pub mod signal;
 pub mod simulator;
+pub mod zoo;

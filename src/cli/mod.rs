@@ -19,6 +19,7 @@ pub mod predict;
 pub mod simulate;
 pub mod split;
 pub mod sweep;
+pub mod zoo;
 
 /// Simulate, identify, plot and improve models of hysteretic actuators.
 #[derive(Debug, Parser)]
@@ -57,6 +58,9 @@ pub enum Command {
     Effects(effects::Args),
     /// Cut a record at its time gaps and resample each part onto a uniform grid.
     Split(split::Args),
+    /// Draw random plants from the effect library with a record of each (`zoo score DIR`:
+    /// the default identifier against a linear baseline on them).
+    Zoo(zoo::Args),
 }
 
 /// The command-line parser of a library setting that has `NAMES` and `FromStr` (the library
@@ -96,6 +100,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Benchmark(a) => benchmark::run(a),
         Command::Split(a) => split::run(a),
         Command::Effects(a) => effects::run(a),
+        Command::Zoo(a) => zoo::run(a),
     }
 }
 

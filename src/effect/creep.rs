@@ -14,6 +14,7 @@
 //! - Physik Instrumente, "Piezo tutorial: creep" (1-2 % per decade).
 
 use super::basis::{BasisBank, BasisContext, EvidenceContext};
+use super::draw::{Dice, DrawContext};
 use super::feature::{FeatureKind, FeatureSpec};
 use super::fitting::{FilterFit, OutputSetup, Prepared, RecordError, RecordView};
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
@@ -367,6 +368,29 @@ impl FilterFit for CreepFilter {
 /// Creep as an effect of the library.
 pub struct CreepEffect;
 
+/// The zoo's creep: 1 to 3 time constants log-uniform in 0.05-100 s (at least a factor 2
+/// apart), gains from a uniform split of a total creep of 0.5-20 % of the output
+/// (log-uniform).
+pub fn draw(dice: &mut Dice) -> CreepSpec {
+    let k = dice.int(1, 3);
+    let mut taus: Vec<f64> = Vec::with_capacity(k);
+    while taus.len() < k {
+        let t = dice.log_uniform(0.05, 100.0);
+        if taus.iter().all(|&s| t / s > 2.0 || s / t > 2.0) {
+            taus.push(t);
+        }
+    }
+    taus.sort_by(f64::total_cmp);
+    let total = dice.log_uniform(0.005, 0.2);
+    let split: Vec<f64> = (0..k).map(|_| dice.uniform(0.2, 1.0)).collect();
+    let sum: f64 = split.iter().sum();
+    CreepSpec {
+        time_constants_s: taus,
+        gains: Some(split.iter().map(|w| total * w / sum).collect()),
+        percent_per_decade: None,
+    }
+}
+
 impl Effect for CreepEffect {
     fn name(&self) -> EffectName {
         NAME
@@ -389,6 +413,9 @@ impl Effect for CreepEffect {
             2.5,
             vec![0.3, 3.0, 30.0],
         )))
+    }
+    fn draw(&self, _ctx: &DrawContext, dice: &mut Dice) -> Option<Box<dyn EffectSpec>> {
+        Some(Box::new(draw(dice)))
     }
     fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
         Some(basis(ctx))

@@ -11,6 +11,7 @@
 //!   twenty-five years later", SIAM Review 45(1):3-49, 2003 (scaling and squaring).
 
 use super::basis::{BasisBank, BasisContext, EvidenceContext};
+use super::draw::{Dice, DrawContext};
 use super::feature::{FeatureKind, FeatureSpec};
 use super::fitting::{log_bounded, log_bounded_inv, FilterFit, OutputSetup, Prepared, FD_STEP};
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
@@ -383,6 +384,18 @@ impl FilterFit for DynamicsFilter {
 /// Linear dynamics as an effect of the library.
 pub struct DynamicsEffect;
 
+/// The zoo's dynamics: a mode with natural frequency log-uniform from Nyquist / 100 to
+/// Nyquist / 3 and damping ratio log-uniform 0.02-0.7 (unit static gain). A quasi-static plant
+/// is one the zoo gives no dynamics.
+pub fn draw(ctx: &DrawContext, dice: &mut Dice) -> DynamicsSpec {
+    let nyquist = 0.5 / ctx.ts;
+    DynamicsSpec {
+        natural_frequency_hz: dice.log_uniform(nyquist / 100.0, nyquist / 3.0),
+        damping_ratio: dice.log_uniform(0.02, 0.7),
+        dc_gain: 1.0,
+    }
+}
+
 impl Effect for DynamicsEffect {
     fn name(&self) -> EffectName {
         NAME
@@ -406,6 +419,9 @@ impl Effect for DynamicsEffect {
             damping_ratio: 0.04,
             dc_gain: 1.0,
         }))
+    }
+    fn draw(&self, ctx: &DrawContext, dice: &mut Dice) -> Option<Box<dyn EffectSpec>> {
+        Some(Box::new(draw(ctx, dice)))
     }
     fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
         Some(basis(ctx))

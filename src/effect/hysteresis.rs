@@ -7,12 +7,15 @@
 
 use super::basis::{play_thresholds, BasisBank, BasisContext, EvidenceContext};
 use super::bouc_wen::{BoucWen, BoucWenOp, BoucWenSpec};
+use super::draw::{Dice, DrawContext, PathRole};
 use super::feature::{FeatureKind, FeatureSpec};
 use super::fitting::{
     Column, PathSetup, RecordError, RecordView, TermFit, TermSpec, Variant, FD_STEP, LIMIT,
 };
 use super::play::{play_bank, play_operator};
-use super::prandtl_ishlinskii::{PrandtlIshlinskii, PrandtlIshlinskiiOp, PrandtlIshlinskiiSpec};
+use super::prandtl_ishlinskii::{
+    DeadZoneSpec, PrandtlIshlinskii, PrandtlIshlinskiiOp, PrandtlIshlinskiiSpec,
+};
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
 use super::{finite, Effect, EffectError, EffectName, Operator, Slot};
 use rayon::prelude::*;
@@ -203,6 +206,80 @@ fn bouc_wen_term_spec(a: f64, b: f64, gamma: f64, d: f64) -> HysteresisSpec {
         n: 1.0,
         initial_h: 0.0,
     })
+}
+
+/// The zoo's hysteresis, for an input of peak `U = ctx.input_amplitude`:
+///
+/// | family (direct path) | share | parameters |
+/// |---|---|---|
+/// | Bouc-Wen | 40 % | gain d log-uniform 0.05-1.5 per input unit; B U log-uniform 0.5-20 (thin lens to flat-topped loop); Gamma / B uniform -0.8-0.8; loop height A / (B + Gamma) = w d U with w log-uniform 0.03-0.4; n = 1, or uniform 1.5-3 in 1 of 5 |
+/// | classical Prandtl-Ishlinskii | 25 % | 4-12 plays at thresholds U k / (m + 1); weights decaying as e^(-c k / m), c uniform 0-3, summing to a share uniform 0.1-0.6 of the gain |
+/// | asymmetric Prandtl-Ishlinskii (Kuhnen) | 20 % | as above, then dead zones at 0, a Y and -b Y (a, b uniform 0.2-0.7 of the peak output Y) with weights 1, c1, c2 uniform -0.35-0.35 |
+/// | saturating Prandtl-Ishlinskii | 15 % | as above, dead zones at +-0.45 Y and +-0.75 Y taking 30-45 % and 25-40 % off the slope |
+///
+/// A cross path is linear (its gain) in 2 of 5 plants, else one of the families above; its
+/// gain is the direct gain times the context's relative gain.
+pub fn draw(ctx: &DrawContext, dice: &mut Dice) -> HysteresisSpec {
+    let u = ctx.input_amplitude;
+    let d = dice.log_uniform(0.05, 1.5)
+        * match ctx.role {
+            PathRole::Direct => 1.0,
+            PathRole::Cross { relative_gain } => relative_gain,
+        };
+    if matches!(ctx.role, PathRole::Cross { .. }) && dice.chance(0.4) {
+        return HysteresisSpec::Linear(LinearSpec { gain: d });
+    }
+    match dice.pick(&[0.40, 0.25, 0.20, 0.15]) {
+        0 => {
+            let b = dice.log_uniform(0.5, 20.0) / u;
+            let gamma = b * dice.uniform(-0.8, 0.8);
+            let w = dice.log_uniform(0.03, 0.4);
+            HysteresisSpec::BoucWen(BoucWenSpec {
+                d,
+                a: w * d * u * (b + gamma),
+                b,
+                gamma,
+                n: if dice.chance(0.2) {
+                    dice.uniform(1.5, 3.0)
+                } else {
+                    1.0
+                },
+                initial_h: 0.0,
+            })
+        }
+        family => {
+            let m = dice.int(4, 12);
+            let c = dice.uniform(0.0, 3.0);
+            let share = dice.uniform(0.1, 0.6);
+            let raw: Vec<f64> = (1..=m).map(|k| (-c * k as f64 / m as f64).exp()).collect();
+            let total: f64 = raw.iter().sum();
+            let weights: Vec<f64> = raw.iter().map(|w| w / total * share * d).collect();
+            let thresholds = (1..=m).map(|k| u * k as f64 / (m + 1) as f64).collect();
+            // the PI output's peak, roughly: the whole slope times the input's peak
+            let y = d * u;
+            let dead_zones = match family {
+                1 => None,
+                2 => Some(DeadZoneSpec {
+                    thresholds: vec![-dice.uniform(0.2, 0.7) * y, 0.0, dice.uniform(0.2, 0.7) * y],
+                    weights: vec![dice.uniform(-0.35, 0.35), 1.0, dice.uniform(-0.35, 0.35)],
+                }),
+                _ => {
+                    let (c1, c2) = (dice.uniform(0.3, 0.45), dice.uniform(0.25, 0.4));
+                    Some(DeadZoneSpec {
+                        thresholds: vec![-0.75 * y, -0.45 * y, 0.0, 0.45 * y, 0.75 * y],
+                        weights: vec![-c2, -c1, 1.0, -c1, -c2],
+                    })
+                }
+            };
+            HysteresisSpec::PrandtlIshlinskii(PrandtlIshlinskiiSpec {
+                linear_weight: d * (1.0 - share),
+                thresholds,
+                weights,
+                initial_state: 0.0,
+                dead_zones,
+            })
+        }
+    }
 }
 
 /// d/d theta_q of a_coef * (Bouc-Wen column) by a forward difference.
@@ -406,6 +483,9 @@ impl Effect for HysteresisEffect {
     /// order of magnitude).
     fn example(&self) -> Option<Box<dyn EffectSpec>> {
         Some(Box::new(bouc_wen_term_spec(0.25, 0.018, 0.006, 0.7)))
+    }
+    fn draw(&self, ctx: &DrawContext, dice: &mut Dice) -> Option<Box<dyn EffectSpec>> {
+        Some(Box::new(draw(ctx, dice)))
     }
     fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
         Some(basis(ctx))

@@ -35,6 +35,7 @@ pub mod basis;
 pub mod bouc_wen;
 pub mod coupling;
 pub mod creep;
+pub mod draw;
 pub mod dynamics;
 mod error;
 pub mod feature;

@@ -7,6 +7,7 @@
 //! grey-box model, a place in plant files.
 
 use super::basis::{BasisBank, BasisContext, EvidenceContext};
+use super::draw::{Dice, DrawContext};
 use super::feature::{FeatureKind, FeatureSpec};
 use super::fitting::{
     FilterFit, OutputSetup, PathSetup, RecordError, RecordView, TermFit, Variant,
@@ -65,6 +66,11 @@ pub trait Effect: Send + Sync + 'static {
     /// A typical spec (for test plants, examples and the effect-matrix test); `None` for an
     /// effect that is a structure.
     fn example(&self) -> Option<Box<dyn EffectSpec>> {
+        None
+    }
+    /// A random spec over the effect's documented physical ranges, for the plant zoo; `None`
+    /// for an effect the zoo does not draw (or, for a path term, a role it does not take).
+    fn draw(&self, _ctx: &DrawContext, _dice: &mut Dice) -> Option<Box<dyn EffectSpec>> {
         None
     }
     /// For an effect that is a structure: does the plant have it?

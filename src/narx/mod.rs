@@ -19,6 +19,7 @@
 //! - K. S. Narendra, K. Parthasarathy, IEEE TNN 1(1):4-27, 1990.
 //! - A. H. Ribeiro, L. A. Aguirre, Neurocomputing 316:222-231, 2018.
 
+pub mod arx;
 pub mod config;
 mod error;
 pub mod fit;

@@ -77,6 +77,14 @@ pub enum ExcitationSpec {
         #[serde(default)]
         offset: f64,
     },
+    /// Band-limited Gaussian noise: white noise through a second-order Butterworth low-pass at
+    /// `f_max_hz`, scaled to the standard deviation `rms` about `offset`.
+    BandLimitedNoise {
+        rms: f64,
+        f_max_hz: f64,
+        #[serde(default)]
+        offset: f64,
+    },
     /// A constant value.
     Constant { value: f64 },
     /// The sum of several excitations.
@@ -323,6 +331,17 @@ impl ExcitationSpec {
                 }
                 fin(&f, "offset", *offset)
             }
+            ExcitationSpec::BandLimitedNoise {
+                rms,
+                f_max_hz,
+                offset,
+            } => {
+                let f = format!("{field}.band_limited_noise");
+                pos(&f, "rms", *rms)?;
+                pos(&f, "f_max_hz", *f_max_hz)?;
+                nyquist(&f, "f_max_hz", *f_max_hz, ctx.ts)?;
+                fin(&f, "offset", *offset)
+            }
             ExcitationSpec::Constant { value } => {
                 fin(&format!("{field}.constant"), "value", *value)
             }
@@ -533,6 +552,11 @@ impl ExcitationSpec {
                 }
                 out
             }
+            ExcitationSpec::BandLimitedNoise {
+                rms,
+                f_max_hz,
+                offset,
+            } => band_limited_noise(n, ts, *rms, *f_max_hz, *offset, ctx.seed, stream),
             ExcitationSpec::Constant { value } => vec![*value; n],
             ExcitationSpec::Sum(parts) => {
                 let mut acc = vec![0.0; n];
@@ -572,6 +596,41 @@ impl ExcitationSpec {
             }
         })
     }
+}
+
+/// `n` samples of white Gaussian noise through a second-order Butterworth low-pass at `f_max`
+/// (bilinear transform, pre-warped; started 20 time constants early so that the record begins
+/// in steady state), scaled to standard deviation `rms` about `offset`.
+fn band_limited_noise(
+    n: usize,
+    ts: f64,
+    rms: f64,
+    f_max: f64,
+    offset: f64,
+    seed: u64,
+    stream: u64,
+) -> Vec<f64> {
+    let k = (PI * (f_max * ts).min(0.499)).tan();
+    let norm = 1.0 / (1.0 + std::f64::consts::SQRT_2 * k + k * k);
+    let (b0, b1, b2) = (k * k * norm, 2.0 * k * k * norm, k * k * norm);
+    let a1 = 2.0 * (k * k - 1.0) * norm;
+    let a2 = (1.0 - std::f64::consts::SQRT_2 * k + k * k) * norm;
+    let warm = ((20.0 / (2.0 * PI * f_max * ts)).ceil() as usize).min(1_000_000);
+    let mut g = Gaussian::new(seed, stream);
+    let (mut x1, mut x2, mut y1, mut y2) = (0.0, 0.0, 0.0, 0.0);
+    let mut out = Vec::with_capacity(n);
+    for i in 0..warm + n {
+        let x = g.standard_normal();
+        let y = b0 * x + b1 * x1 + b2 * x2 - a1 * y1 - a2 * y2;
+        (x2, x1, y2, y1) = (x1, x, y1, y);
+        if i >= warm {
+            out.push(y);
+        }
+    }
+    let m = crate::metrics::mean(&out);
+    let sd = crate::metrics::std_dev(&out);
+    let scale = if sd > 0.0 { rms / sd } else { 0.0 };
+    out.iter().map(|v| offset + (v - m) * scale).collect()
 }
 
 /// Bin indices k (frequency k / period) inside [f_min, f_max], skipping DC.

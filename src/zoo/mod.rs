@@ -1,0 +1,308 @@
+//! # The plant zoo: plants we did not write, to develop and judge against
+//!
+//! `make` draws `count` random plants from the effect library over wide, documented physical
+//! ranges (each effect's `draw`: [`crate::effect::hysteresis::draw`],
+//! [`crate::effect::creep::draw`], [`crate::effect::dynamics::draw`]), an excitation for each
+//! input ([`draw`]), simulates a record of each and writes the three files, so that any member
+//! can be re-run with `hystbench simulate`. Member `i` of seed `s` is the same whatever the
+//! zoo's size. [`score`] runs the default identifier and a linear ARX baseline on every record
+//! and reports the distribution of the free-run test R^2 per class.
+//!
+//! A zoo folder:
+//!
+//! ```text
+//! DIR/zoo.json                 the index: seed, count, and per member its class and files
+//! DIR/plants/0000.json         plant files
+//! DIR/scenarios/0000.json      scenario files (noise set from the noiseless record's range)
+//! DIR/records/0000.csv         the records (with `simulate`'s sidecar 0000.json)
+//! DIR/score/                   what `zoo score` writes
+//! ```
+
+pub mod draw;
+pub mod score;
+
+pub use draw::{member, Class, Member};
+pub use score::{score, ZooScore};
+
+use crate::data::{format_csv, JsonFileError};
+use crate::plant::PlantError;
+use crate::scenario::{NoiseLevel, ScenarioError};
+use crate::simulator::{simulate_scenario, SimulateError};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The index file's `format` field.
+pub const FORMAT: &str = "hystbench-zoo";
+/// The index file version this code writes and reads.
+pub const VERSION: u32 = 1;
+/// The index file's name in a zoo folder.
+pub const INDEX: &str = "zoo.json";
+
+/// What can go wrong making or scoring a zoo.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ZooError {
+    #[error("--count must be at least 1 (got 0)")]
+    NoMembers,
+    #[error("{dir}: exists and is not a zoo folder (no {INDEX}); choose another folder")]
+    NotAZoo { dir: PathBuf },
+    #[error("{dir}: exists; pass --force to replace this zoo")]
+    Exists { dir: PathBuf },
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    File(#[from] JsonFileError),
+    #[error("{path}: not a zoo index: {why}")]
+    NotAnIndex { path: PathBuf, why: String },
+    #[error("{dir}: the zoo has no members")]
+    Empty { dir: PathBuf },
+    #[error("member {index}: {source}")]
+    Plant { index: usize, source: PlantError },
+    #[error("member {index}: {source}")]
+    Scenario { index: usize, source: ScenarioError },
+    #[error("member {index}: {source}")]
+    Simulate { index: usize, source: SimulateError },
+    #[error("{0}")]
+    Data(#[from] crate::data::DataError),
+    #[error("{path}: {source}")]
+    Narx {
+        path: PathBuf,
+        source: crate::narx::NarxError,
+    },
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> ZooError + '_ {
+    move |source| ZooError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// The index of a zoo folder.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ZooIndex {
+    pub format: String,
+    pub version: u32,
+    pub seed: u64,
+    pub members: Vec<IndexEntry>,
+}
+
+/// One member in the index (paths relative to the zoo folder).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IndexEntry {
+    pub index: usize,
+    pub class: Class,
+    pub samples: usize,
+    pub sampling_period_s: f64,
+    pub record: String,
+    pub plant: String,
+    pub scenario: String,
+}
+
+impl ZooIndex {
+    /// Reads the index of zoo folder `dir`.
+    pub fn read(dir: &Path) -> Result<ZooIndex, ZooError> {
+        let path = dir.join(INDEX);
+        if !path.exists() {
+            return Err(ZooError::NotAZoo {
+                dir: dir.to_path_buf(),
+            });
+        }
+        let text = crate::data::read_json_text(&path)?;
+        let header = crate::data::FileHeader::read(&path, &text)?;
+        if header.format_str() != Some(FORMAT) {
+            return Err(ZooError::NotAnIndex {
+                path,
+                why: format!("`format` is not \"{FORMAT}\""),
+            });
+        }
+        let index: ZooIndex = crate::data::parse_json_file(&path, &text)?;
+        if index.version != VERSION {
+            return Err(ZooError::NotAnIndex {
+                path,
+                why: format!(
+                    "version {} is not supported; this hystbench reads version {VERSION}",
+                    index.version
+                ),
+            });
+        }
+        if index.members.is_empty() {
+            return Err(ZooError::Empty {
+                dir: dir.to_path_buf(),
+            });
+        }
+        Ok(index)
+    }
+}
+
+/// The files of one member, in memory.
+struct MemberFiles {
+    entry: IndexEntry,
+    plant: String,
+    scenario: String,
+    record: String,
+    sidecar: String,
+}
+
+/// Draws member `index` and simulates its record: once without noise to measure each output's
+/// range, then with the noise the member draws (a share of that range) written into its
+/// scenario, so that `simulate` with the written files gives the same record.
+fn make_member(seed: u64, index: usize) -> Result<MemberFiles, ZooError> {
+    let mut m = member(seed, index);
+    let name = format!("{index:04}");
+    let plant_path = PathBuf::from(format!("plants/{name}.json"));
+    let scen_path = PathBuf::from(format!("scenarios/{name}.json"));
+    let plant = m
+        .plant
+        .check(&plant_path)
+        .map_err(|source| ZooError::Plant { index, source })?;
+    let run = |spec: &crate::scenario::ScenarioSpec| -> Result<_, ZooError> {
+        let scenario = spec
+            .check(&scen_path)
+            .map_err(|source| ZooError::Scenario { index, source })?;
+        simulate_scenario(&plant, &scenario, None)
+            .map_err(|source| ZooError::Simulate { index, source })
+    };
+    let clean = run(&m.scenario)?;
+    let noise: Vec<f64> = clean
+        .record
+        .outputs
+        .iter()
+        .zip(&m.noise_share)
+        .map(|(o, share)| share * crate::metrics::ptp(&o.values).max(f64::MIN_POSITIVE))
+        .collect();
+    m.scenario.noise_std = NoiseLevel::PerOutput(noise);
+    let sim = run(&m.scenario)?;
+    let (names, cols) = sim.record.to_columns();
+    let record_path = format!("records/{name}.csv");
+    let record = format_csv(Path::new(&record_path), &names, &cols)?;
+    let json = |v: &dyn erased_serde::Serialize| -> String {
+        serde_json::to_string_pretty(v).expect("specs serialise") + "\n"
+    };
+    Ok(MemberFiles {
+        entry: IndexEntry {
+            index,
+            class: m.class,
+            samples: m.scenario.samples,
+            sampling_period_s: m.scenario.sampling_period_s,
+            record: record_path,
+            plant: plant_path.display().to_string(),
+            scenario: scen_path.display().to_string(),
+        },
+        plant: json(&m.plant),
+        scenario: json(&m.scenario),
+        record,
+        sidecar: json(&sim.provenance),
+    })
+}
+
+/// The indices of the first `count` members of seed `seed` whose class is one of `classes`
+/// (every class when empty).
+pub fn member_indices(seed: u64, count: usize, classes: &[Class]) -> Vec<usize> {
+    (0..)
+        .filter(|&i| classes.is_empty() || classes.contains(&draw::class_of(seed, i)))
+        .take(count)
+        .collect()
+}
+
+/// Makes a zoo of `count` members of seed `seed` in `dir` (only members of `classes` when it is
+/// not empty; each keeps its index, so member i is the same in every zoo of its seed). The
+/// folder is written whole or not at all (built beside it, then moved in place); an existing
+/// zoo is replaced only with `force`, and a folder that is not a zoo never. `progress` hears
+/// each member as it is done (in any order).
+pub fn make(
+    dir: &Path,
+    count: usize,
+    seed: u64,
+    classes: &[Class],
+    force: bool,
+    progress: &(dyn Fn(&IndexEntry) + Sync),
+) -> Result<ZooIndex, ZooError> {
+    if count == 0 {
+        return Err(ZooError::NoMembers);
+    }
+    let replace = check_target(dir, force)?;
+    let files: Vec<MemberFiles> = member_indices(seed, count, classes)
+        .into_par_iter()
+        .map(|i| {
+            let f = make_member(seed, i)?;
+            progress(&f.entry);
+            Ok(f)
+        })
+        .collect::<Result<_, ZooError>>()?;
+    let index = ZooIndex {
+        format: FORMAT.into(),
+        version: VERSION,
+        seed,
+        members: files.iter().map(|f| f.entry.clone()).collect(),
+    };
+    let parent = match dir.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let tmp = parent.join(format!(
+        ".{}.partial-{}",
+        dir.file_name()
+            .map_or("zoo".into(), |n| n.to_string_lossy()),
+        std::process::id()
+    ));
+    let written = write_folder(&tmp, &index, &files);
+    if let Err(e) = written {
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Err(e);
+    }
+    if replace {
+        std::fs::remove_dir_all(dir).map_err(io(dir))?;
+    }
+    std::fs::rename(&tmp, dir).map_err(io(dir))?;
+    Ok(index)
+}
+
+/// Whether `dir` may be written: absent or empty (false), an existing zoo with `force` (true:
+/// replace it); else an error.
+fn check_target(dir: &Path, force: bool) -> Result<bool, ZooError> {
+    if !dir.exists() {
+        return Ok(false);
+    }
+    let empty = std::fs::read_dir(dir).map_err(io(dir))?.next().is_none();
+    if empty {
+        std::fs::remove_dir(dir).map_err(io(dir))?;
+        return Ok(false);
+    }
+    if !dir.join(INDEX).exists() {
+        return Err(ZooError::NotAZoo {
+            dir: dir.to_path_buf(),
+        });
+    }
+    if !force {
+        return Err(ZooError::Exists {
+            dir: dir.to_path_buf(),
+        });
+    }
+    Ok(true)
+}
+
+fn write_folder(tmp: &Path, index: &ZooIndex, files: &[MemberFiles]) -> Result<(), ZooError> {
+    for sub in ["plants", "scenarios", "records"] {
+        let d = tmp.join(sub);
+        std::fs::create_dir_all(&d).map_err(io(&d))?;
+    }
+    let write = |rel: &str, text: &str| -> Result<(), ZooError> {
+        let p = tmp.join(rel);
+        std::fs::write(&p, text).map_err(io(&p))
+    };
+    for f in files {
+        write(&f.entry.plant, &f.plant)?;
+        write(&f.entry.scenario, &f.scenario)?;
+        write(&f.entry.record, &f.record)?;
+        write(&f.entry.record.replace(".csv", ".json"), &f.sidecar)?;
+    }
+    let text = serde_json::to_string_pretty(index).expect("the index serialises") + "\n";
+    write(INDEX, &text)
+}

@@ -1,0 +1,292 @@
+//! Scoring a zoo: the default identifier (`NarxConfig::new(..).fit`, what `hystbench identify`
+//! runs without options) and a linear ARX baseline with the same lags, each trained on the first
+//! half of every record and run free on the second; the free-run test R^2 per output, summed up
+//! per class.
+
+use super::{Class, IndexEntry, ZooError, ZooIndex};
+use crate::data::{read_csv, IoRecord};
+use crate::narx::arx::fit_arx;
+use crate::narx::NarxConfig;
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::Path;
+use std::time::Instant;
+
+/// One output of one record.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OutputScore {
+    pub name: String,
+    /// Free-run test R^2 of the default identifier (`None`: diverged, or undefined).
+    pub r2: Option<f64>,
+    pub diverged: bool,
+    /// Its free-run R^2 on the training half.
+    pub r2_train: Option<f64>,
+    /// The same for the ARX baseline.
+    pub arx_r2: Option<f64>,
+    pub arx_diverged: bool,
+}
+
+impl OutputScore {
+    /// Worse than the linear baseline: a lower R^2, or diverged where the baseline did not.
+    pub fn worse_than_arx(&self) -> bool {
+        match (self.r2, self.arx_r2) {
+            (Some(a), Some(b)) => a < b,
+            (None, Some(_)) => true,
+            _ => false,
+        }
+    }
+}
+
+/// One record.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RecordScore {
+    pub index: usize,
+    pub class: Class,
+    pub samples: usize,
+    pub sampling_period_s: f64,
+    pub outputs: Vec<OutputScore>,
+    /// Wall-clock time of the default identifier's fit (s).
+    pub seconds: f64,
+}
+
+/// The distribution of one score over a class.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Distribution {
+    /// Quantiles 0, 0.05, 0.25, 0.5 of the R^2 (a diverged output counts as minus infinity,
+    /// written `null`).
+    pub min: Option<f64>,
+    pub q05: Option<f64>,
+    pub q25: Option<f64>,
+    pub median: Option<f64>,
+    /// Outputs with R^2 >= 0.99, >= 0.999, and diverged.
+    pub at_least_099: usize,
+    pub at_least_0999: usize,
+    pub diverged: usize,
+}
+
+/// One class.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ClassSummary {
+    pub class: Class,
+    pub records: usize,
+    pub outputs: usize,
+    pub narx: Distribution,
+    pub arx: Distribution,
+    /// Records whose every output reaches 0.99 / 0.999.
+    pub records_all_099: usize,
+    pub records_all_0999: usize,
+    /// Outputs worse than the ARX baseline.
+    pub worse_than_arx: usize,
+    /// Median of the train - test free-run R^2 gap.
+    pub median_gap: Option<f64>,
+    pub median_seconds: f64,
+    pub total_seconds: f64,
+}
+
+/// A scored zoo.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ZooScore {
+    pub seed: u64,
+    pub records: Vec<RecordScore>,
+    pub classes: Vec<ClassSummary>,
+}
+
+/// Scores one member's record.
+fn score_member(dir: &Path, e: &IndexEntry) -> Result<RecordScore, ZooError> {
+    let path = dir.join(&e.record);
+    let io = IoRecord::from_record(&read_csv(&path)?, None, None, true)?;
+    let (train, test) = io.split_halves();
+    let narx_err = |source| ZooError::Narx {
+        path: path.clone(),
+        source,
+    };
+    let t0 = Instant::now();
+    let model = NarxConfig::new(train.input_names(), train.output_names())
+        .fit(&train)
+        .map_err(narx_err)?;
+    let seconds = t0.elapsed().as_secs_f64();
+    let eval = model.evaluate(&train, &test).map_err(narx_err)?;
+    let arx = fit_arx(&train, model.config.lags).map_err(narx_err)?;
+    let runs = arx.free_run(&test);
+    let outputs = eval
+        .iter()
+        .zip(&runs)
+        .zip(&test.outputs)
+        .map(|((ev, run), y)| OutputScore {
+            name: ev.name.clone(),
+            r2: ev.r2_fr_test,
+            diverged: ev.diverged_at_test.is_some(),
+            r2_train: ev.r2_fr_train,
+            arx_r2: run.scores(&y.values).and_then(|s| s.r2),
+            arx_diverged: run.diverged_at.is_some(),
+        })
+        .collect();
+    Ok(RecordScore {
+        index: e.index,
+        class: e.class,
+        samples: e.samples,
+        sampling_period_s: e.sampling_period_s,
+        outputs,
+        seconds,
+    })
+}
+
+/// Scores every record of the zoo in `dir` (one after another; each fit uses every thread).
+/// `progress` hears each record when it is scored.
+pub fn score(dir: &Path, progress: &mut dyn FnMut(&RecordScore)) -> Result<ZooScore, ZooError> {
+    let index = ZooIndex::read(dir)?;
+    let mut records = Vec::new();
+    for e in &index.members {
+        let r = score_member(dir, e)?;
+        progress(&r);
+        records.push(r);
+    }
+    let classes = Class::ALL
+        .iter()
+        .filter_map(|&c| summarise(c, &records))
+        .collect();
+    Ok(ZooScore {
+        seed: index.seed,
+        records,
+        classes,
+    })
+}
+
+/// The `q` quantile (nearest rank, from below) of sorted values.
+fn quantile(sorted: &[f64], q: f64) -> Option<f64> {
+    if sorted.is_empty() {
+        return None;
+    }
+    let k = ((sorted.len() - 1) as f64 * q).floor() as usize;
+    Some(sorted[k]).filter(|v| v.is_finite())
+}
+
+fn distribution(r2: &[Option<f64>]) -> Distribution {
+    let mut v: Vec<f64> = r2.iter().map(|x| x.unwrap_or(f64::NEG_INFINITY)).collect();
+    v.sort_by(f64::total_cmp);
+    Distribution {
+        min: quantile(&v, 0.0),
+        q05: quantile(&v, 0.05),
+        q25: quantile(&v, 0.25),
+        median: quantile(&v, 0.5),
+        at_least_099: v.iter().filter(|&&x| x >= 0.99).count(),
+        at_least_0999: v.iter().filter(|&&x| x >= 0.999).count(),
+        diverged: r2.iter().filter(|x| x.is_none()).count(),
+    }
+}
+
+fn median(mut v: Vec<f64>) -> Option<f64> {
+    v.sort_by(f64::total_cmp);
+    (!v.is_empty()).then(|| v[v.len() / 2])
+}
+
+fn summarise(class: Class, records: &[RecordScore]) -> Option<ClassSummary> {
+    let mine: Vec<&RecordScore> = records.iter().filter(|r| r.class == class).collect();
+    if mine.is_empty() {
+        return None;
+    }
+    let outs: Vec<&OutputScore> = mine.iter().flat_map(|r| &r.outputs).collect();
+    let all = |t: f64| {
+        mine.iter()
+            .filter(|r| r.outputs.iter().all(|o| o.r2.is_some_and(|v| v >= t)))
+            .count()
+    };
+    let gaps: Vec<f64> = outs
+        .iter()
+        .filter_map(|o| Some(o.r2_train? - o.r2?))
+        .collect();
+    Some(ClassSummary {
+        class,
+        records: mine.len(),
+        outputs: outs.len(),
+        narx: distribution(&outs.iter().map(|o| o.r2).collect::<Vec<_>>()),
+        arx: distribution(&outs.iter().map(|o| o.arx_r2).collect::<Vec<_>>()),
+        records_all_099: all(0.99),
+        records_all_0999: all(0.999),
+        worse_than_arx: outs.iter().filter(|o| o.worse_than_arx()).count(),
+        median_gap: median(gaps),
+        median_seconds: median(mine.iter().map(|r| r.seconds).collect()).unwrap_or(0.0),
+        total_seconds: mine.iter().map(|r| r.seconds).sum(),
+    })
+}
+
+fn cell(v: Option<f64>) -> String {
+    v.map_or("diverged".into(), |x| {
+        if x.abs() >= 1e-3 || x == 0.0 {
+            format!("{x:.4}")
+        } else {
+            format!("{x:.2e}")
+        }
+    })
+}
+
+impl ZooScore {
+    /// `results.csv`: one row per output of each record.
+    pub fn to_csv(&self) -> String {
+        let mut s = String::from("index,class,samples,sampling_period_s,output,r2_test,diverged,r2_train,arx_r2_test,arx_diverged,worse_than_arx,seconds\n");
+        let opt = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
+        for r in &self.records {
+            for o in &r.outputs {
+                let _ = writeln!(
+                    s,
+                    "{},{},{},{},{},{},{},{},{},{},{},{}",
+                    r.index,
+                    r.class,
+                    r.samples,
+                    r.sampling_period_s,
+                    o.name,
+                    opt(o.r2),
+                    o.diverged as u8,
+                    opt(o.r2_train),
+                    opt(o.arx_r2),
+                    o.arx_diverged as u8,
+                    o.worse_than_arx() as u8,
+                    r.seconds
+                );
+            }
+        }
+        s
+    }
+
+    /// `report.md`: the per-class table.
+    pub fn to_markdown(&self) -> String {
+        let mut s = format!(
+            "# Plant zoo (seed {}): default identifier against a linear ARX\n\n",
+            self.seed
+        );
+        s += "Free-run R^2 on the second half of each record (the first half trains). \
+              Quantiles over the outputs of a class; a diverged free run counts as the lowest.\n\n";
+        s += "| class | records | outputs | R^2 min | 5 % | 25 % | median | >= 0.99 | >= 0.999 | diverged | records all >= 0.99 | ARX median | ARX >= 0.99 | ARX diverged | worse than ARX | median train-test gap | median time |\n";
+        s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+        for c in &self.classes {
+            let share = |k: usize, n: usize| format!("{k} ({:.0} %)", 100.0 * k as f64 / n as f64);
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2} s |",
+                c.class,
+                c.records,
+                c.outputs,
+                cell(c.narx.min),
+                cell(c.narx.q05),
+                cell(c.narx.q25),
+                cell(c.narx.median),
+                share(c.narx.at_least_099, c.outputs),
+                share(c.narx.at_least_0999, c.outputs),
+                c.narx.diverged,
+                share(c.records_all_099, c.records),
+                cell(c.arx.median),
+                share(c.arx.at_least_099, c.outputs),
+                c.arx.diverged,
+                c.worse_than_arx,
+                c.median_gap.map_or("-".into(), |g| format!("{g:.2e}")),
+                c.median_seconds
+            );
+        }
+        let total: f64 = self.classes.iter().map(|c| c.total_seconds).sum();
+        let _ = writeln!(
+            s,
+            "\nIdentifier time over all records: {total:.1} s (the ARX fits are not counted)."
+        );
+        s
+    }
+}

@@ -1,0 +1,256 @@
+//! The plant zoo: reproducible, every member re-runs with `simulate`, members do not depend on
+//! the zoo's size, bad input refused with nothing half written, and `zoo score` on a small zoo
+//! (the CI's zoo; the 200-record run is a bench: `benches/zoo.sh`).
+
+mod common;
+
+use common::{hystbench, s, stderr};
+use hystbench::zoo::{self, Class, ZooIndex};
+use std::path::Path;
+
+fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut out = Vec::new();
+    for sub in ["plants", "scenarios", "records"] {
+        let mut names: Vec<_> = std::fs::read_dir(dir.join(sub))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        names.sort();
+        for p in names {
+            out.push((
+                p.strip_prefix(dir).unwrap().display().to_string(),
+                std::fs::read(&p).unwrap(),
+            ));
+        }
+    }
+    out.push((
+        "zoo.json".into(),
+        std::fs::read(dir.join("zoo.json")).unwrap(),
+    ));
+    out
+}
+
+#[test]
+fn a_zoo_is_reproducible_and_each_member_reruns_with_simulate() {
+    let t = tempfile::tempdir().unwrap();
+    let (a, b) = (t.path().join("a"), t.path().join("b"));
+    let short = "1dof-short,1dof-tiny,2dof-short";
+    for d in [&a, &b] {
+        let o = hystbench(&[
+            "zoo",
+            "--count",
+            "6",
+            "--seed",
+            "7",
+            "--classes",
+            short,
+            "--out",
+            s(d),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    assert!(files(&a) == files(&b), "two zoos of one seed differ");
+    let index = ZooIndex::read(&a).unwrap();
+    assert_eq!(index.members.len(), 6);
+    // a member is the same in a smaller zoo of its seed
+    let c = t.path().join("c");
+    let o = hystbench(&[
+        "zoo",
+        "--count",
+        "2",
+        "--seed",
+        "7",
+        "--classes",
+        short,
+        "--out",
+        s(&c),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let first = &index.members[1].record;
+    assert_eq!(
+        std::fs::read(a.join(first)).unwrap(),
+        std::fs::read(c.join(first)).unwrap()
+    );
+    // ... and its plant and scenario files give its record again
+    let m = &index.members[3];
+    let out = t.path().join("again.csv");
+    let o = hystbench(&[
+        "simulate",
+        "--plant",
+        s(&a.join(&m.plant)),
+        "--scenario",
+        s(&a.join(&m.scenario)),
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        std::fs::read(a.join(&m.record)).unwrap()
+    );
+    // another seed, another zoo
+    let d = t.path().join("d");
+    assert!(hystbench(&[
+        "zoo",
+        "--count",
+        "2",
+        "--seed",
+        "8",
+        "--classes",
+        short,
+        "--out",
+        s(&d)
+    ])
+    .status
+    .success());
+    assert_ne!(files(&c), files(&d));
+}
+
+#[test]
+fn the_draws_cover_the_documented_classes_and_ranges() {
+    let mut seen = std::collections::BTreeSet::new();
+    for i in 0..300 {
+        let m = zoo::member(3, i);
+        seen.insert(m.class);
+        let sc = &m.scenario;
+        assert!(
+            (1e-4..1e-2).contains(&sc.sampling_period_s),
+            "{}",
+            sc.sampling_period_s
+        );
+        assert!((300..=200_000).contains(&sc.samples), "{}", sc.samples);
+        assert_eq!(m.plant.inputs.len(), m.class.axes());
+        assert!(m.noise_share.iter().all(|v| (5e-4..2e-2).contains(v)));
+        // every member checks as a plant and a scenario
+        let p = Path::new("m.json");
+        m.plant.check(p).unwrap();
+        sc.check(p).unwrap();
+    }
+    assert_eq!(seen.len(), Class::ALL.len(), "{seen:?}");
+}
+
+#[test]
+fn bad_input_is_refused_and_nothing_is_half_written() {
+    let t = tempfile::tempdir().unwrap();
+    let z = t.path().join("z");
+    let o = hystbench(&["zoo", "--count", "0", "--out", s(&z)]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("--count"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!z.exists());
+    // a folder of the user's is never replaced, even with --force
+    let mine = t.path().join("mine");
+    std::fs::create_dir(&mine).unwrap();
+    std::fs::write(mine.join("notes.txt"), "keep").unwrap();
+    let o = hystbench(&["zoo", "--count", "1", "--out", s(&mine), "--force"]);
+    assert!(stderr(&o).contains("not a zoo folder"), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read_to_string(mine.join("notes.txt")).unwrap(),
+        "keep"
+    );
+    // an existing zoo needs --force
+    let args = [
+        "zoo",
+        "--count",
+        "1",
+        "--classes",
+        "1dof-tiny",
+        "--out",
+        s(&z),
+    ];
+    assert!(hystbench(&args).status.success());
+    let o = hystbench(&args);
+    assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
+    let mut forced = args.to_vec();
+    forced.push("--force");
+    assert!(hystbench(&forced).status.success());
+    // a folder that cannot be made
+    let under_file = t.path().join("notes").join("z");
+    std::fs::write(t.path().join("notes"), "a file").unwrap();
+    let o = hystbench(&["zoo", "--count", "1", "--out", s(&under_file)]);
+    assert!(!o.status.success(), "made a zoo under a file");
+    let leftovers: Vec<_> = std::fs::read_dir(t.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .filter(|n| n.contains("partial"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+    // an unknown class
+    let o = hystbench(&["zoo", "--classes", "3dof", "--out", s(&z)]);
+    assert!(stderr(&o).contains("1dof-long"), "{}", stderr(&o));
+    // score: no zoo, a damaged record
+    let o = hystbench(&["zoo", "score", s(&mine)]);
+    assert!(stderr(&o).contains("not a zoo folder"), "{}", stderr(&o));
+    let index = ZooIndex::read(&z).unwrap();
+    let rec = z.join(&index.members[0].record);
+    let text = std::fs::read_to_string(&rec).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    lines[5] = lines[5].replacen(',', ",oops", 1);
+    std::fs::write(&rec, lines.join("\n") + "\n").unwrap();
+    let o = hystbench(&["zoo", "score", s(&z)]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains(&index.members[0].record) && e.contains("line 6"),
+        "{e}"
+    );
+    assert!(
+        !z.join("score").exists(),
+        "a score folder was written for a damaged zoo"
+    );
+}
+
+/// The CI's zoo: a few short records, scored; the default identifier never diverges where the
+/// linear baseline does not, and its test R^2 is reported beside the baseline's.
+#[test]
+fn a_small_zoo_is_scored_against_the_linear_baseline() {
+    let t = tempfile::tempdir().unwrap();
+    let z = t.path().join("z");
+    let o = hystbench(&[
+        "zoo",
+        "--count",
+        "4",
+        "--seed",
+        "2",
+        "--classes",
+        "1dof-short,1dof-tiny",
+        "--out",
+        s(&z),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = hystbench(&["zoo", "score", s(&z), "--json", "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let records = v["records"].as_array().unwrap();
+    assert_eq!(records.len(), 4);
+    let mut outputs = 0;
+    for r in records {
+        for out in r["outputs"].as_array().unwrap() {
+            outputs += 1;
+            assert!(
+                out["arx_r2"].is_number() || out["arx_diverged"] == true,
+                "{out}"
+            );
+            if out["arx_diverged"] == false {
+                assert!(
+                    out["diverged"] == false,
+                    "diverged where the ARX did not: {out}"
+                );
+            }
+        }
+    }
+    let summed: u64 = v["classes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["outputs"].as_u64().unwrap())
+        .sum();
+    assert_eq!(summed, outputs);
+    let csv = std::fs::read_to_string(z.join("score/results.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + outputs as usize);
+    assert!(std::fs::read_to_string(z.join("score/report.md"))
+        .unwrap()
+        .contains("| 1dof-"));
+}
