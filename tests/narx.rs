@@ -5,6 +5,8 @@
 //! The long acceptance run (the study's 64-setting grid) is `#[ignore]`d:
 //! `cargo test --release --test narx -- --ignored`.
 
+mod common;
+
 use hystbench::data::{IoRecord, Signal};
 use hystbench::effect::hysteresis::HysteresisEffect;
 use hystbench::effect::Effect;
@@ -842,4 +844,30 @@ fn short_records_get_an_ensemble_that_loads_predicts_the_median_and_reports_dive
     let old = FittedNarx::from_json(std::path::Path::new("old.json"), &v.to_string()).unwrap();
     assert!(old.outputs.iter().all(|o| o.ensemble.is_empty()));
     assert!(old.predict(&test, Mode::FreeRun).is_ok());
+}
+
+/// The linear candidate: on a linear plant (a lightly damped mode, APRBS input) the default
+/// identifier keeps a model whose validation error is no worse than the linear candidate's,
+/// and its free-run test R^2 is at least the ARX baseline's (to 1e-4).
+#[test]
+fn on_a_linear_plant_the_identifier_is_no_worse_than_arx() {
+    let plant = r#"{"name": "linear", "inputs": ["u"], "outputs": [{"name": "y",
+        "paths": [{"input": "u", "hysteresis": {"linear": {"gain": 0.8}}}],
+        "dynamics": {"natural_frequency_hz": 40.0, "damping_ratio": 0.1}}]}"#;
+    let scenario = r#"{"name": "aprbs", "sampling_period_s": 0.001, "samples": 4000,
+        "seed": 5, "inputs": [{"random_steps": {"amplitude": 10.0, "min_hold_s": 0.01,
+        "max_hold_s": 0.1}}]}"#;
+    let rec = common::record(plant, scenario, 0.01);
+    let (train, test) = rec.split_halves();
+    let m = config(&train).fit(&train).unwrap();
+    let t = &m.outputs[0].training;
+    let linear = t
+        .linear_selection_mse
+        .expect("a linear candidate was tried");
+    assert!(t.selection_mse().is_some_and(|s| s <= linear), "{t:?}");
+    let r2 = m.evaluate(&train, &test).unwrap()[0].r2_fr_test.unwrap();
+    let arx = hystbench::narx::arx::fit_arx(&train, m.config.lags).unwrap();
+    let run = &arx.free_run(&test)[0];
+    let arx_r2 = run.scores(&test.outputs[0].values).unwrap().r2.unwrap();
+    assert!(r2 >= arx_r2 - 1e-4, "identifier {r2} < ARX {arx_r2}");
 }

@@ -28,7 +28,8 @@ use super::model::{
 };
 use super::regressors::{inverse_std, Regressor, RegressorForm, Series, Standardiser};
 use super::train::{
-    free_run_score, init_output_layer, train_one_step, train_simulation_error, Design,
+    free_run_score, init_output_layer, linear_output_layer, train_one_step, train_simulation_error,
+    Design,
 };
 use super::NarxError;
 use crate::data::IoRecord;
@@ -220,10 +221,14 @@ impl NarxConfig {
             Protocol::Default => self.robust.ensemble_size(n_total),
             Protocol::Study => 1,
         };
+        let linear: Vec<Option<(Mlp, Option<f64>)>> = data
+            .par_iter()
+            .map(|d| self.linear_candidate(d, &settings))
+            .collect();
         let mut outputs = Vec::new();
-        for (o, d) in data.into_iter().enumerate() {
+        for ((o, d), lin) in data.into_iter().enumerate().zip(linear) {
             let mine = &results[o * restarts..(o + 1) * restarts];
-            outputs.push(self.output_model(o, d, mine, size)?);
+            outputs.push(self.output_model(o, d, mine, size, lin)?);
         }
         Ok(FittedNarx {
             config: self.clone(),
@@ -448,33 +453,84 @@ impl NarxConfig {
                 ));
             }
         }
-        let mut sum = 0.0;
-        let mut selection_mse = Some(());
-        for p in &d.parts {
-            match free_run_score(&net, &d.reg, &p.val, p.val_from, d.lo, d.hi) {
-                Some(m) => sum += m,
-                None => selection_mse = None,
-            }
-        }
         let record = RestartRecord {
             seed,
             one_step,
             simulation,
-            selection_mse: selection_mse.map(|_| sum / d.parts.len() as f64),
+            selection_mse: self.validation_mse(&net, d),
         };
         (net, record, fit_samples, samples - fit_samples)
     }
 
-    /// Output `o`'s model from its restarts: the best one, and the ensemble of `size`.
+    /// The linear candidate of the default protocol (a network whose only path is its
+    /// bypass, fitted by one-step least squares) and its free-run validation MSE; `None` with
+    /// the study protocol or without a bypass.
+    fn linear_candidate(&self, d: &OutputData, r: &RobustSettings) -> Option<(Mlp, Option<f64>)> {
+        if self.protocol != Protocol::Default || !r.bypass {
+            return None;
+        }
+        let mut net = self.network(true, 0);
+        let h = net.sizes[net.sizes.len() - 2];
+        let hidden_end = net.bypass_offset() - h - 1;
+        net.params[..hidden_end].fill(0.0);
+        if !linear_output_layer(&mut net, &d.d_fit, 1e-8) {
+            return None;
+        }
+        Some((net.clone(), self.validation_mse(&net, d)))
+    }
+
+    /// The mean free-run validation MSE over the records (`None`: a free run diverged).
+    fn validation_mse(&self, net: &Mlp, d: &OutputData) -> Option<f64> {
+        let mut sum = 0.0;
+        for p in &d.parts {
+            sum += free_run_score(net, &d.reg, &p.val, p.val_from, d.lo, d.hi)?;
+        }
+        Some(sum / d.parts.len() as f64)
+    }
+
+    /// Output `o`'s model from its restarts: the best one, and the ensemble of `size`; or the
+    /// linear candidate when it validates at least as well as the best network (or the
+    /// networks diverged and it did not).
     fn output_model(
         &self,
         o: usize,
         d: OutputData,
         mine: &[Restart],
         size: usize,
+        linear: Option<(Mlp, Option<f64>)>,
     ) -> Result<OutputModel, NarxError> {
         let name = &self.outputs[o];
         let chosen = best_restart(mine.iter().map(|r| &r.1));
+        let best = mine[chosen].1.selection_mse;
+        let (linear_net, linear_mse) = match linear {
+            Some((net, mse)) => (Some(net), mse),
+            None => (None, None),
+        };
+        let linear_wins = match (linear_mse, best) {
+            (Some(l), Some(b)) => l <= b,
+            (Some(_), None) => true,
+            _ => false,
+        };
+        if linear_wins {
+            return Ok(OutputModel {
+                name: name.clone(),
+                scaling: d.scaling,
+                train_min: d.train_min,
+                train_max: d.train_max,
+                regressor: d.reg,
+                network: linear_net.expect("a linear candidate"),
+                ensemble: Vec::new(),
+                training: OutputTraining {
+                    train_samples: mine[chosen].2,
+                    validation_samples: mine[chosen].3,
+                    restarts: mine.iter().map(|r| r.1.clone()).collect(),
+                    chosen_restart: chosen,
+                    ensemble_restarts: Vec::new(),
+                    linear_selection_mse: linear_mse,
+                    linear: true,
+                },
+            });
+        }
         let net = mine[chosen].0.clone();
         if !net.params.iter().all(|p| p.is_finite()) {
             return Err(NarxError::NonFiniteWeights {
@@ -502,6 +558,8 @@ impl NarxConfig {
                 } else {
                     Vec::new()
                 },
+                linear_selection_mse: linear_mse,
+                linear: false,
             },
         })
     }

@@ -41,6 +41,24 @@ pub struct OutputTraining {
     /// The restarts kept as an ensemble (`chosen_restart` first); empty: one network.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub ensemble_restarts: Vec<usize>,
+    /// The free-run validation MSE of the linear candidate (an ARX model in the network's
+    /// regressors, see `train::linear_output_layer`), when one was tried.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub linear_selection_mse: Option<f64>,
+    /// True when the linear candidate validated better than every network and is the model.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub linear: bool,
+}
+
+impl OutputTraining {
+    /// The free-run validation MSE of the model kept (`None`: it diverged).
+    pub fn selection_mse(&self) -> Option<f64> {
+        if self.linear {
+            self.linear_selection_mse
+        } else {
+            self.restarts[self.chosen_restart].selection_mse
+        }
+    }
 }
 
 /// One output's network and scaling.
@@ -172,7 +190,7 @@ impl FittedNarx {
     pub fn selection_mse(&self) -> Option<f64> {
         self.outputs
             .iter()
-            .map(|o| o.training.restarts[o.training.chosen_restart].selection_mse)
+            .map(|o| o.training.selection_mse())
             .sum()
     }
 

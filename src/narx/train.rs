@@ -330,6 +330,34 @@ pub fn init_output_layer(mlp: &mut Mlp, d: &Design, ridge: f64) {
     }
 }
 
+/// The linear candidate in a network with a bypass: the output layer's hidden weights set to
+/// zero, its bias and the bypass fitted by least squares on the one-step error (with a small
+/// ridge): an ARX model in the network's regressors. False (the network unchanged) without a
+/// bypass or when the least squares has no solution.
+pub fn linear_output_layer(mlp: &mut Mlp, d: &Design, ridge: f64) -> bool {
+    if !mlp.bypass {
+        return false;
+    }
+    let h = mlp.sizes[mlp.sizes.len() - 2];
+    let p = d.width;
+    let mut ne = NormalEquations::new(1 + p);
+    let mut row = vec![0.0; 1 + p];
+    row[0] = 1.0;
+    for i in 0..d.rows() {
+        row[1..].copy_from_slice(d.row(i));
+        ne.add_row(&row, d.t[i]);
+    }
+    let Some(w) = ne.solve(ridge * d.rows() as f64) else {
+        return false;
+    };
+    let off = mlp.bypass_offset() - h - 1;
+    mlp.params[off..off + h].fill(0.0);
+    mlp.params[off + h] = w[0];
+    let bo = mlp.bypass_offset();
+    mlp.params[bo..bo + p].copy_from_slice(&w.as_slice()[1..]);
+    true
+}
+
 /// A free run of a standardised series: the first `lags.start()` outputs are the measured ones,
 /// after that the network's own. Stops at the first sample outside `[lo, hi]` (or non-finite) and
 /// returns its index as the divergence point.
