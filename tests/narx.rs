@@ -871,3 +871,45 @@ fn on_a_linear_plant_the_identifier_is_no_worse_than_arx() {
     let arx_r2 = run.scores(&test.outputs[0].values).unwrap().r2.unwrap();
     assert!(r2 >= arx_r2 - 1e-4, "identifier {r2} < ARX {arx_r2}");
 }
+
+/// A slow sine at a fast sampling rate: the protocol offers coarser model samplings, and a
+/// model that samples every 4th sample predicts every sample (its phases interleaved), keeps
+/// its decimation in the model file, and scores like an undecimated one.
+#[test]
+fn an_oversampled_record_is_modelled_at_a_coarser_sampling() {
+    let plant = r#"{"name": "bw", "inputs": ["u"], "outputs": [{"name": "y",
+        "paths": [{"input": "u", "hysteresis": {"bouc_wen": {"d": 0.7, "A": 0.25,
+        "B": 0.018, "Gamma": 0.006}}}]}]}"#;
+    let scenario = r#"{"name": "slow", "sampling_period_s": 0.001, "samples": 24000,
+        "inputs": [{"sum": [{"sine": {"amplitude": 30.0, "frequency_hz": 0.7}},
+        {"sine": {"amplitude": 12.0, "frequency_hz": 2.3}}]}]}"#;
+    let rec = common::record(plant, scenario, 0.02);
+    let (train, test) = rec.split_halves();
+    let cfg = config(&train);
+    let candidates = cfg.decimation_candidates(&train);
+    // 16 would leave fewer than 1,000 samples per phase of the 12,000
+    assert_eq!(candidates, vec![4]);
+    let mut c4 = quick(cfg.clone());
+    c4.decimation = 4;
+    c4.robust.try_features.clear();
+    let m = c4.fit(&train).unwrap();
+    assert_eq!(m.config.decimation, 4);
+    let p = &m.predict(&test, Mode::FreeRun).unwrap()[0];
+    assert_eq!(p.values.len(), test.len());
+    assert_eq!(p.start, 4 * m.config.lags.start());
+    let r2 = p.scores(&test.outputs[0].values).unwrap().r2.unwrap();
+    assert!(r2 > 0.999, "decimated model R^2 {r2}");
+    let text = m.to_json();
+    assert!(text.contains("\"decimation\": 4"));
+    let back = FittedNarx::from_json(std::path::Path::new("m.json"), &text).unwrap();
+    assert_eq!(back.predict(&test, Mode::FreeRun).unwrap()[0], *p);
+    // a record too short for the decimation is refused clearly
+    let e = m.predict(&test.slice(0..10), Mode::FreeRun).unwrap_err();
+    assert!(e.to_string().contains("every 4th sample"), "{e}");
+    // and a broadband record offers no coarser sampling
+    let steps = r#"{"name": "aprbs", "sampling_period_s": 0.001, "samples": 24000, "seed": 3,
+        "inputs": [{"random_steps": {"amplitude": 30.0, "min_hold_s": 0.002,
+        "max_hold_s": 0.01}}]}"#;
+    let (train, _) = common::record(plant, steps, 0.02).split_halves();
+    assert!(cfg.decimation_candidates(&train).is_empty());
+}

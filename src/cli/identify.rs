@@ -292,6 +292,9 @@ fn run_with(
             outs.insert(e.name.clone(), evaluation_json(e));
         }
         let mut v = serde_json::json!({"outputs": outs, "train_seconds": model.train_seconds});
+        if let Some(ds) = &model.decimation_selection {
+            v["decimation"] = serde_json::json!({"chosen": ds.chosen, "tried": ds.tried});
+        }
         if let Some(fs) = &model.feature_selection {
             v["feature_selection"] = serde_json::json!({
                 "tried": fs.tried,
@@ -366,6 +369,23 @@ fn run_with(
                     .map_or("diverged".into(), |v| format!("{v:.3e}")),
                 fs.selection_mse_with
                     .map_or("diverged".into(), |v| format!("{v:.3e}")),
+            );
+        }
+        if let Some(ds) = &model.decimation_selection {
+            let tried: Vec<String> = ds
+                .tried
+                .iter()
+                .map(|(s, m)| {
+                    format!(
+                        "{s}: {}",
+                        m.map_or("diverged".into(), |v| format!("{v:.3e}"))
+                    )
+                })
+                .collect();
+            println!(
+                "model sampling: every {} sample(s) of the record (free-run validation MSE per decimation: {})",
+                ds.chosen,
+                tried.join(", ")
             );
         }
         println!(

@@ -149,6 +149,22 @@ impl IoRecord {
         }
     }
 
+    /// Phase `p` of a decimation by `s`: samples p, p + s, p + 2s, ... (sampling period s ts).
+    pub fn phase(&self, s: usize, p: usize) -> IoRecord {
+        let cut = |x: &Signal| Signal {
+            name: x.name.clone(),
+            values: x.values.iter().skip(p).step_by(s.max(1)).copied().collect(),
+        };
+        IoRecord {
+            path: self.path.clone(),
+            ts: self.ts * s as f64,
+            t0: self.t0 + p as f64 * self.ts,
+            time_name: self.time_name.clone(),
+            inputs: self.inputs.iter().map(cut).collect(),
+            outputs: self.outputs.iter().map(cut).collect(),
+        }
+    }
+
     /// First half for training, second half for testing, as in the source study.
     pub fn split_halves(&self) -> (IoRecord, IoRecord) {
         let h = self.len() / 2;

@@ -23,8 +23,8 @@
 use super::config::{NarxConfig, Protocol, RobustSettings};
 use super::mlp::Mlp;
 use super::model::{
-    best_restart, input_slices, names_str, FeatureSelection, FittedNarx, OutputModel,
-    OutputTraining, RestartRecord, DIVERGENCE_RANGES,
+    best_restart, input_slices, names_str, DecimationSelection, FeatureSelection, FittedNarx,
+    OutputModel, OutputTraining, RestartRecord, DIVERGENCE_RANGES,
 };
 use super::regressors::{inverse_std, Regressor, RegressorForm, Series, Standardiser};
 use super::train::{
@@ -40,6 +40,9 @@ use std::borrow::Cow;
 
 /// Rounds of simulation-error training over the records when there are several.
 pub const ROUNDS: usize = 3;
+
+/// The phases of a decimated record that train the model (evenly spread).
+pub const MAX_PHASES: usize = 4;
 
 /// The segments one after another (borrowed when there is one).
 fn pooled<'a>(segments: &[&'a [f64]]) -> Cow<'a, [f64]> {
@@ -103,6 +106,76 @@ impl NarxConfig {
     /// effects' basis signals and the lower free-run validation error decides (see
     /// [`FeatureSelection`]); the chosen features end up in the fitted model's `config.features`.
     pub fn fit(&self, train: &IoRecord) -> Result<FittedNarx, NarxError> {
+        let t0 = std::time::Instant::now();
+        let m = self.fit_selecting_features(train)?;
+        let mut m = self.choose_decimation(train, m)?;
+        m.train_seconds = t0.elapsed().as_secs_f64();
+        Ok(m)
+    }
+
+    /// The decimations worth trying on `train`: 4, 16 and 64 where the record's 99 % bandwidth
+    /// (inputs and outputs) stays below an eighth of the decimated sampling rate and each phase
+    /// keeps 1,000 samples; none with the study protocol, with `try_decimation` off, or when
+    /// the configuration fixes a decimation.
+    pub fn decimation_candidates(&self, train: &IoRecord) -> Vec<usize> {
+        if self.protocol != Protocol::Default || !self.robust.try_decimation || self.decimation != 1
+        {
+            return Vec::new();
+        }
+        let f_bw = train
+            .inputs
+            .iter()
+            .chain(&train.outputs)
+            .map(|s| crate::signal::bandwidth(&s.values, train.ts, 0.99))
+            .fold(0.0, f64::max);
+        if f_bw <= 0.0 {
+            return Vec::new();
+        }
+        let s_max = 1.0 / (8.0 * train.ts * f_bw);
+        [4, 16, 64]
+            .into_iter()
+            .filter(|&s| s as f64 <= s_max && train.len() / s >= 1000)
+            .collect()
+    }
+
+    /// Fits the plain network at each candidate decimation (on up to [`MAX_PHASES`] of the
+    /// record's phases as separate records) and keeps the model with the lowest free-run validation error,
+    /// `m` (every sample) included.
+    fn choose_decimation(&self, train: &IoRecord, m: FittedNarx) -> Result<FittedNarx, NarxError> {
+        let candidates = self.decimation_candidates(train);
+        if candidates.is_empty() {
+            return Ok(m);
+        }
+        let mut tried = vec![(1, m.selection_mse())];
+        let mut best = m;
+        for s in candidates {
+            let mut c = self.clone();
+            c.decimation = s;
+            c.robust.try_features.clear();
+            let Ok(ms) = c.fit_fixed(std::slice::from_ref(train)) else {
+                continue;
+            };
+            let mse = ms.selection_mse();
+            tried.push((s, mse));
+            let better = match (mse, best.selection_mse()) {
+                (Some(a), Some(b)) => a < b,
+                (Some(_), None) => true,
+                _ => false,
+            };
+            if better {
+                best = ms;
+            }
+        }
+        best.decimation_selection = Some(DecimationSelection {
+            tried,
+            chosen: best.config.decimation,
+        });
+        Ok(best)
+    }
+
+    /// [`NarxConfig::fit`] at every sample: the plain network, or the network with the
+    /// effect-library features when they validate clearly better.
+    fn fit_selecting_features(&self, train: &IoRecord) -> Result<FittedNarx, NarxError> {
         self.check()?;
         let records = std::slice::from_ref(train);
         // Without a validation part (a short record, see `RobustSettings::for_record`) the
@@ -173,9 +246,24 @@ impl NarxConfig {
         Ok(m)
     }
 
-    /// The fit with the configuration's features as they are (no selection).
+    /// The fit with the configuration's features as they are (no selection). With a
+    /// decimation s > 1 every record is replaced by up to 4 of its phases (evenly spread).
     fn fit_fixed(&self, records: &[IoRecord]) -> Result<FittedNarx, NarxError> {
         self.check()?;
+        let s = self.decimation;
+        if s > 1 {
+            let k = s.min(MAX_PHASES);
+            let phases: Vec<IoRecord> = records
+                .iter()
+                .flat_map(|r| (0..k).map(move |i| r.phase(s, i * s / k)))
+                .collect();
+            return self.fit_native(&phases);
+        }
+        self.fit_native(records)
+    }
+
+    /// [`Self::fit_fixed`] on records at the model's sampling.
+    fn fit_native(&self, records: &[IoRecord]) -> Result<FittedNarx, NarxError> {
         let t0 = std::time::Instant::now();
         self.check_training(records)?;
         let raw: Vec<Vec<Vec<f64>>> = records
@@ -236,6 +324,7 @@ impl NarxConfig {
             outputs,
             train_seconds: t0.elapsed().as_secs_f64(),
             feature_selection: None,
+            decimation_selection: None,
         })
     }
 

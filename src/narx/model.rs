@@ -99,6 +99,18 @@ pub struct FittedNarx {
     /// How the protocol chose the extra features (`None`: no selection ran).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub feature_selection: Option<FeatureSelection>,
+    /// How the protocol chose the model's sampling (`None`: no coarser one was tried).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub decimation_selection: Option<DecimationSelection>,
+}
+
+/// The protocol's choice of the model's sampling on an oversampled training record: each
+/// decimation tried with its free-run validation MSE (summed over the outputs, standardised
+/// units; `None`: diverged), and the one kept.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DecimationSelection {
+    pub tried: Vec<(usize, Option<f64>)>,
+    pub chosen: usize,
 }
 
 /// The protocol's choice between the plain regressors and regressors plus effect-library
@@ -236,6 +248,37 @@ impl FittedNarx {
     /// Predict every output of a record. One-step needs the measured outputs; a free run uses
     /// the first measured outputs as its initial condition (zeros when the record has none).
     pub fn predict(&self, rec: &IoRecord, mode: Mode) -> Result<Vec<OutputPrediction>, NarxError> {
+        let s = self.config.decimation;
+        if s <= 1 {
+            return self.predict_native(rec, mode);
+        }
+        self.check_record(rec)?;
+        let n = rec.len();
+        let start = self.config.lags.start();
+        if n < s * (start + 1) {
+            return Err(NarxError::TooShort {
+                path: rec.path.clone(),
+                rows: n,
+                needed: s * (start + 1),
+                why: format!(
+                    "the model samples every {s}th sample and its lags need {start} initial samples per phase"
+                ),
+            });
+        }
+        let phases: Vec<Vec<OutputPrediction>> = (0..s)
+            .map(|p| self.predict_native(&rec.phase(s, p), mode))
+            .collect::<Result<_, _>>()?;
+        Ok((0..self.outputs.len())
+            .map(|o| interleave(phases.iter().map(|ph| &ph[o]).collect(), s, n))
+            .collect())
+    }
+
+    /// [`FittedNarx::predict`] at the model's own sampling (every sample of `rec`).
+    fn predict_native(
+        &self,
+        rec: &IoRecord,
+        mode: Mode,
+    ) -> Result<Vec<OutputPrediction>, NarxError> {
         self.check_record(rec)?;
         let lags = self.config.lags;
         let start = lags.start();
@@ -513,5 +556,34 @@ impl FittedNarx {
             });
         }
         Ok(out)
+    }
+}
+
+/// The predictions of the `s` phases of a record of `n` samples (phase p: samples p, p + s,
+/// ...) put back in time order. A phase that diverged ends the prediction at its sample.
+fn interleave(phases: Vec<&OutputPrediction>, s: usize, n: usize) -> OutputPrediction {
+    let diverged_at = phases
+        .iter()
+        .enumerate()
+        .filter_map(|(p, ph)| ph.diverged_at.map(|k| k * s + p))
+        .min();
+    let len = diverged_at.unwrap_or(n).min(
+        (0..s)
+            .map(|p| phases[p].values.len() * s + p)
+            .min()
+            .unwrap_or(0),
+    );
+    let mut diverged_members: Vec<usize> = phases
+        .iter()
+        .flat_map(|ph| ph.diverged_members.iter().copied())
+        .collect();
+    diverged_members.sort_unstable();
+    diverged_members.dedup();
+    OutputPrediction {
+        name: phases[0].name.clone(),
+        values: (0..len).map(|k| phases[k % s].values[k / s]).collect(),
+        start: phases[0].start * s,
+        diverged_at,
+        diverged_members,
     }
 }

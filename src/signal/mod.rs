@@ -93,6 +93,24 @@ pub fn amplitude_spectrum(x: &[f64], ts: f64) -> (Vec<f64>, Vec<f64>) {
     (f, a)
 }
 
+/// The frequency below which `share` (e.g. 0.99) of the power of `x` lies (its amplitude
+/// spectrum, mean removed); 0 for a record too short for a spectrum or without power.
+pub fn bandwidth(x: &[f64], ts: f64, share: f64) -> f64 {
+    let (f, a) = amplitude_spectrum(x, ts);
+    let total: f64 = a.iter().map(|v| v * v).sum();
+    if !(total > 0.0 && total.is_finite()) {
+        return 0.0;
+    }
+    let mut acc = 0.0;
+    for (fk, ak) in f.iter().zip(&a) {
+        acc += ak * ak;
+        if acc >= share * total {
+            return *fk;
+        }
+    }
+    f.last().copied().unwrap_or(0.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

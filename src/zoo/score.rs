@@ -24,6 +24,13 @@ pub struct OutputScore {
     /// The same for the ARX baseline.
     pub arx_r2: Option<f64>,
     pub arx_diverged: bool,
+    /// The R^2 of the true plant (its noiseless output) on the test half: the ceiling the
+    /// measurement noise sets.
+    pub truth_r2: Option<f64>,
+    /// The identifier's and the baseline's free runs scored against the noiseless output
+    /// instead of the measurement: the model's own error, without the noise.
+    pub r2_clean: Option<f64>,
+    pub arx_r2_clean: Option<f64>,
 }
 
 impl OutputScore {
@@ -72,11 +79,18 @@ pub struct ClassSummary {
     pub outputs: usize,
     pub narx: Distribution,
     pub arx: Distribution,
+    /// The true plant's (the noise ceiling).
+    pub truth: Distribution,
+    /// Against the noiseless output.
+    pub narx_clean: Distribution,
+    pub arx_clean: Distribution,
     /// Records whose every output reaches 0.99 / 0.999.
     pub records_all_099: usize,
     pub records_all_0999: usize,
     /// Outputs worse than the ARX baseline.
     pub worse_than_arx: usize,
+    /// Outputs within 0.001 of the true plant's R^2 (as good as the noise allows).
+    pub near_truth: usize,
     /// Median of the train - test free-run R^2 gap.
     pub median_gap: Option<f64>,
     pub median_seconds: f64,
@@ -89,6 +103,33 @@ pub struct ZooScore {
     pub seed: u64,
     pub records: Vec<RecordScore>,
     pub classes: Vec<ClassSummary>,
+}
+
+/// The member's outputs without measurement noise (its plant and scenario re-run).
+fn noiseless(dir: &Path, e: &IndexEntry) -> Result<Vec<Vec<f64>>, ZooError> {
+    let index = e.index;
+    let plant_path = dir.join(&e.plant);
+    let scen_path = dir.join(&e.scenario);
+    let plant = crate::plant::PlantSpec::read(&plant_path)
+        .and_then(|p| p.check(&plant_path))
+        .map_err(|source| ZooError::Plant { index, source })?;
+    let mut spec = crate::scenario::ScenarioSpec::read(&scen_path)
+        .map_err(|source| ZooError::Scenario { index, source })?;
+    spec.noise_std = crate::scenario::NoiseLevel::All(0.0);
+    let scenario = spec
+        .check(&scen_path)
+        .map_err(|source| ZooError::Scenario { index, source })?;
+    let sim = crate::simulator::simulate_scenario(&plant, &scenario, None)
+        .map_err(|source| ZooError::Simulate { index, source })?;
+    Ok(sim.record.outputs.into_iter().map(|s| s.values).collect())
+}
+
+/// R^2 of a free run against the noiseless output over `start..` (`None` when diverged).
+fn clean_r2(clean: &[f64], pred: &[f64], start: usize, diverged: Option<usize>) -> Option<f64> {
+    if diverged.is_some() || pred.len() != clean.len() {
+        return None;
+    }
+    crate::metrics::r2(&clean[start..], &pred[start..])
 }
 
 /// Scores one member's record.
@@ -106,19 +147,29 @@ fn score_member(dir: &Path, e: &IndexEntry) -> Result<RecordScore, ZooError> {
         .map_err(narx_err)?;
     let seconds = t0.elapsed().as_secs_f64();
     let eval = model.evaluate(&train, &test).map_err(narx_err)?;
+    let free = model
+        .predict(&test, crate::narx::Mode::FreeRun)
+        .map_err(narx_err)?;
     let arx = fit_arx(&train, model.config.lags).map_err(narx_err)?;
     let runs = arx.free_run(&test);
+    let truth = noiseless(dir, e)?;
+    let h = train.len();
     let outputs = eval
         .iter()
         .zip(&runs)
         .zip(&test.outputs)
-        .map(|((ev, run), y)| OutputScore {
+        .zip(&truth)
+        .zip(&free)
+        .map(|((((ev, run), y), clean), fr)| OutputScore {
             name: ev.name.clone(),
             r2: ev.r2_fr_test,
             diverged: ev.diverged_at_test.is_some(),
             r2_train: ev.r2_fr_train,
             arx_r2: run.scores(&y.values).and_then(|s| s.r2),
             arx_diverged: run.diverged_at.is_some(),
+            truth_r2: crate::metrics::r2(&y.values, &clean[h..]),
+            r2_clean: clean_r2(&clean[h..], &fr.values, fr.start, fr.diverged_at),
+            arx_r2_clean: clean_r2(&clean[h..], &run.values, run.start, run.diverged_at),
         })
         .collect();
     Ok(RecordScore {
@@ -201,9 +252,19 @@ fn summarise(class: Class, records: &[RecordScore]) -> Option<ClassSummary> {
         outputs: outs.len(),
         narx: distribution(&outs.iter().map(|o| o.r2).collect::<Vec<_>>()),
         arx: distribution(&outs.iter().map(|o| o.arx_r2).collect::<Vec<_>>()),
+        truth: distribution(&outs.iter().map(|o| o.truth_r2).collect::<Vec<_>>()),
+        narx_clean: distribution(&outs.iter().map(|o| o.r2_clean).collect::<Vec<_>>()),
+        arx_clean: distribution(&outs.iter().map(|o| o.arx_r2_clean).collect::<Vec<_>>()),
         records_all_099: all(0.99),
         records_all_0999: all(0.999),
         worse_than_arx: outs.iter().filter(|o| o.worse_than_arx()).count(),
+        near_truth: outs
+            .iter()
+            .filter(|o| match (o.r2, o.truth_r2) {
+                (Some(a), Some(t)) => a >= t - 1e-3,
+                _ => false,
+            })
+            .count(),
         median_gap: median(gaps),
         median_seconds: median(mine.iter().map(|r| r.seconds).collect()).unwrap_or(0.0),
         total_seconds: mine.iter().map(|r| r.seconds).sum(),
@@ -223,13 +284,13 @@ fn cell(v: Option<f64>) -> String {
 impl ZooScore {
     /// `results.csv`: one row per output of each record.
     pub fn to_csv(&self) -> String {
-        let mut s = String::from("index,class,samples,sampling_period_s,output,r2_test,diverged,r2_train,arx_r2_test,arx_diverged,worse_than_arx,seconds\n");
+        let mut s = String::from("index,class,samples,sampling_period_s,output,r2_test,diverged,r2_train,arx_r2_test,arx_diverged,worse_than_arx,truth_r2_test,r2_clean,arx_r2_clean,seconds\n");
         let opt = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
         for r in &self.records {
             for o in &r.outputs {
                 let _ = writeln!(
                     s,
-                    "{},{},{},{},{},{},{},{},{},{},{},{}",
+                    "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                     r.index,
                     r.class,
                     r.samples,
@@ -241,6 +302,9 @@ impl ZooScore {
                     opt(o.arx_r2),
                     o.arx_diverged as u8,
                     o.worse_than_arx() as u8,
+                    opt(o.truth_r2),
+                    opt(o.r2_clean),
+                    opt(o.arx_r2_clean),
                     r.seconds
                 );
             }
@@ -255,14 +319,16 @@ impl ZooScore {
             self.seed
         );
         s += "Free-run R^2 on the second half of each record (the first half trains). \
-              Quantiles over the outputs of a class; a diverged free run counts as the lowest.\n\n";
-        s += "| class | records | outputs | R^2 min | 5 % | 25 % | median | >= 0.99 | >= 0.999 | diverged | records all >= 0.99 | ARX median | ARX >= 0.99 | ARX diverged | worse than ARX | median train-test gap | median time |\n";
-        s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+              Quantiles over the outputs of a class; a diverged free run counts as the lowest. \
+              \"truth\": the true plant's noiseless output scored the same way, the ceiling \
+              that the measurement noise sets.\n\n";
+        s += "| class | records | outputs | R^2 min | 5 % | 25 % | median | >= 0.99 | >= 0.999 | diverged | records all >= 0.99 | ARX median | ARX >= 0.99 | ARX diverged | worse than ARX | truth >= 0.999 | within 0.001 of truth | median train-test gap | median time |\n";
+        s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
         for c in &self.classes {
             let share = |k: usize, n: usize| format!("{k} ({:.0} %)", 100.0 * k as f64 / n as f64);
             let _ = writeln!(
                 s,
-                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2} s |",
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2} s |",
                 c.class,
                 c.records,
                 c.outputs,
@@ -278,8 +344,28 @@ impl ZooScore {
                 share(c.arx.at_least_099, c.outputs),
                 c.arx.diverged,
                 c.worse_than_arx,
+                share(c.truth.at_least_0999, c.outputs),
+                share(c.near_truth, c.outputs),
                 c.median_gap.map_or("-".into(), |g| format!("{g:.2e}")),
                 c.median_seconds
+            );
+        }
+        s += "\nAgainst the noiseless output (the model's own error, without the measurement noise):\n\n";
+        s += "| class | outputs | R^2 5 % | median | >= 0.99 | >= 0.999 | ARX median | ARX >= 0.99 | ARX >= 0.999 |\n|---|---|---|---|---|---|---|---|---|\n";
+        for c in &self.classes {
+            let share = |k: usize, n: usize| format!("{k} ({:.0} %)", 100.0 * k as f64 / n as f64);
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+                c.class,
+                c.outputs,
+                cell(c.narx_clean.q05),
+                cell(c.narx_clean.median),
+                share(c.narx_clean.at_least_099, c.outputs),
+                share(c.narx_clean.at_least_0999, c.outputs),
+                cell(c.arx_clean.median),
+                share(c.arx_clean.at_least_099, c.outputs),
+                share(c.arx_clean.at_least_0999, c.outputs),
             );
         }
         let total: f64 = self.classes.iter().map(|c| c.total_seconds).sum();
