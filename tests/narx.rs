@@ -49,8 +49,10 @@ fn default_protocol_recovers_bouc_wen_piezo_in_free_run() {
     let (r2, chosen) = fit_and_score(&config(&rec), &rec);
     let r2 = r2[0].expect("no divergence");
     assert!(r2 >= 0.999, "free-run test R^2 {r2}");
-    // the play features do not win on validation here (8.3e-5 plain vs 6.6e-4 with)
-    assert_eq!(chosen, Some(false));
+    // the play features do not win on validation here (8.3e-5 plain vs 6.6e-4 with); when a
+    // coarser model sampling wins, the model is the plain network at that sampling (no record
+    // of the feature selection at every sample)
+    assert_ne!(chosen, Some(true));
 }
 
 #[test]
@@ -245,13 +247,20 @@ fn identical_models_at_one_and_two_threads() {
     assert_ne!(one, model_bytes(&cfg.fit(&rec).unwrap()));
 }
 
-/// One training path: on one record, `fit_records` is `fit` without the feature selection, bit
-/// for bit (2-DoF, so the joint (output, restart) jobs are exercised too).
+/// One training path: on one record, `fit_records` is `fit` without its selections (features,
+/// decimation; the linear probe runs on short records only), bit for bit; on two outputs, so
+/// the joint (output, restart) jobs are exercised too.
 #[test]
-fn fit_records_on_one_record_is_fit_without_the_selection() {
-    let rec = seed_2dof(3).split_halves().0;
+fn fit_records_on_one_record_is_fit_without_the_selections() {
+    let mut rec = seed_1dof(Plant1::BoucWen, 2_400, 3);
+    let y2 = Signal {
+        name: "y2".into(),
+        values: rec.outputs[0].values.iter().map(|v| 0.5 * v * v).collect(),
+    };
+    rec.outputs.push(y2);
     let mut cfg = quick(config(&rec));
     cfg.robust.try_features.clear();
+    cfg.robust.try_decimation = false;
     let one = model_bytes(&cfg.fit(&rec).unwrap());
     let records = model_bytes(&cfg.fit_records(std::slice::from_ref(&rec)).unwrap());
     assert!(one == records, "fit and fit_records differ on one record");

@@ -24,7 +24,7 @@ use super::config::{NarxConfig, Protocol, RobustSettings};
 use super::mlp::Mlp;
 use super::model::{
     best_restart, input_slices, names_str, DecimationSelection, FeatureSelection, FittedNarx,
-    OutputModel, OutputTraining, RestartRecord, DIVERGENCE_RANGES,
+    LinearProbe, OutputModel, OutputTraining, RestartRecord, DIVERGENCE_RANGES,
 };
 use super::regressors::{inverse_std, Regressor, RegressorForm, Series, Standardiser};
 use super::train::{
@@ -43,6 +43,9 @@ pub const ROUNDS: usize = 3;
 
 /// The phases of a decimated record that train the model (evenly spread).
 pub const MAX_PHASES: usize = 4;
+
+/// The tail of a short record that the linear probe holds out ([`NarxConfig::fit`]).
+pub const PROBE_TAIL: f64 = 0.25;
 
 /// The segments one after another (borrowed when there is one).
 fn pooled<'a>(segments: &[&'a [f64]]) -> Cow<'a, [f64]> {
@@ -108,9 +111,50 @@ impl NarxConfig {
     pub fn fit(&self, train: &IoRecord) -> Result<FittedNarx, NarxError> {
         let t0 = std::time::Instant::now();
         let m = self.fit_selecting_features(train)?;
+        let m = self.probe_linear(train, m)?;
         let mut m = self.choose_decimation(train, m)?;
         m.train_seconds = t0.elapsed().as_secs_f64();
         Ok(m)
+    }
+
+    /// On a record too short for a validation part the linear candidate meets the networks on
+    /// the training free run, where the networks always win. A probe decides instead: the
+    /// plain network (up to 4 restarts) and the linear candidate trained on the record but its
+    /// last [`PROBE_TAIL`], and run free on that tail. Outputs whose linear
+    /// candidate validates at least as well there are refitted linear on the whole record.
+    fn probe_linear(&self, train: &IoRecord, m: FittedNarx) -> Result<FittedNarx, NarxError> {
+        let n = train.len();
+        if self.protocol != Protocol::Default
+            || !self.robust.bypass
+            || self.robust.for_record(n).validation_fraction != 0.0
+        {
+            return Ok(m);
+        }
+        let mut probe = self.clone();
+        probe.robust.validation_fraction = PROBE_TAIL;
+        probe.robust.restarts = Some(self.robust.restarts_for(n).min(4));
+        probe.robust.ensemble = Some(1);
+        probe.robust.try_features.clear();
+        let Ok(p) = probe.fit_fixed(std::slice::from_ref(train)) else {
+            return Ok(m);
+        };
+        let results: Vec<LinearProbe> = p
+            .outputs
+            .iter()
+            .map(|o| LinearProbe {
+                network_mse: o.training.restarts[o.training.chosen_restart].selection_mse,
+                linear_mse: o.training.linear_selection_mse,
+                linear: o.training.linear,
+            })
+            .collect();
+        let force: Vec<bool> = results.iter().map(|r| r.linear).collect();
+        let mut out = if force.iter().any(|&f| f) {
+            self.fit_fixed_forcing(std::slice::from_ref(train), &force)?
+        } else {
+            m
+        };
+        out.linear_probe = Some(results);
+        Ok(out)
     }
 
     /// The decimations worth trying on `train`: 4, 16 and 64 where the record's 99 % bandwidth
@@ -249,6 +293,16 @@ impl NarxConfig {
     /// The fit with the configuration's features as they are (no selection). With a
     /// decimation s > 1 every record is replaced by up to 4 of its phases (evenly spread).
     fn fit_fixed(&self, records: &[IoRecord]) -> Result<FittedNarx, NarxError> {
+        self.fit_fixed_forcing(records, &[])
+    }
+
+    /// [`Self::fit_fixed`] with the outputs where `force_linear` is true given the linear
+    /// candidate whatever the validation says.
+    fn fit_fixed_forcing(
+        &self,
+        records: &[IoRecord],
+        force_linear: &[bool],
+    ) -> Result<FittedNarx, NarxError> {
         self.check()?;
         let s = self.decimation;
         if s > 1 {
@@ -257,13 +311,17 @@ impl NarxConfig {
                 .iter()
                 .flat_map(|r| (0..k).map(move |i| r.phase(s, i * s / k)))
                 .collect();
-            return self.fit_native(&phases);
+            return self.fit_native(&phases, force_linear);
         }
-        self.fit_native(records)
+        self.fit_native(records, force_linear)
     }
 
     /// [`Self::fit_fixed`] on records at the model's sampling.
-    fn fit_native(&self, records: &[IoRecord]) -> Result<FittedNarx, NarxError> {
+    fn fit_native(
+        &self,
+        records: &[IoRecord],
+        force_linear: &[bool],
+    ) -> Result<FittedNarx, NarxError> {
         let t0 = std::time::Instant::now();
         self.check_training(records)?;
         let raw: Vec<Vec<Vec<f64>>> = records
@@ -316,7 +374,8 @@ impl NarxConfig {
         let mut outputs = Vec::new();
         for ((o, d), lin) in data.into_iter().enumerate().zip(linear) {
             let mine = &results[o * restarts..(o + 1) * restarts];
-            outputs.push(self.output_model(o, d, mine, size, lin)?);
+            let force = force_linear.get(o).copied().unwrap_or(false);
+            outputs.push(self.output_model(o, d, mine, size, lin, force)?);
         }
         Ok(FittedNarx {
             config: self.clone(),
@@ -325,6 +384,7 @@ impl NarxConfig {
             train_seconds: t0.elapsed().as_secs_f64(),
             feature_selection: None,
             decimation_selection: None,
+            linear_probe: None,
         })
     }
 
@@ -587,6 +647,7 @@ impl NarxConfig {
         mine: &[Restart],
         size: usize,
         linear: Option<(Mlp, Option<f64>)>,
+        force_linear: bool,
     ) -> Result<OutputModel, NarxError> {
         let name = &self.outputs[o];
         let chosen = best_restart(mine.iter().map(|r| &r.1));
@@ -595,11 +656,12 @@ impl NarxConfig {
             Some((net, mse)) => (Some(net), mse),
             None => (None, None),
         };
-        let linear_wins = match (linear_mse, best) {
-            (Some(l), Some(b)) => l <= b,
-            (Some(_), None) => true,
-            _ => false,
-        };
+        let linear_wins = (force_linear && linear_net.is_some())
+            || match (linear_mse, best) {
+                (Some(l), Some(b)) => l <= b,
+                (Some(_), None) => true,
+                _ => false,
+            };
         if linear_wins {
             return Ok(OutputModel {
                 name: name.clone(),

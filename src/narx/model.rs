@@ -102,6 +102,19 @@ pub struct FittedNarx {
     /// How the protocol chose the model's sampling (`None`: no coarser one was tried).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub decimation_selection: Option<DecimationSelection>,
+    /// The short-record probe of the linear candidate, per output (`None`: not run).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub linear_probe: Option<Vec<LinearProbe>>,
+}
+
+/// The linear probe of one output on a short record: the free-run MSE on the held-out tail of
+/// the best plain network and of the linear candidate (`None`: diverged), and whether the
+/// linear candidate won (the output is then linear).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LinearProbe {
+    pub network_mse: Option<f64>,
+    pub linear_mse: Option<f64>,
+    pub linear: bool,
 }
 
 /// The protocol's choice of the model's sampling on an oversampled training record: each
