@@ -53,6 +53,12 @@ pub trait Model {
     /// Free-run prediction of every output for the inputs of `rec`.
     fn predict(&self, rec: &IoRecord) -> Result<Vec<Vec<f64>>, ModelError>;
 
+    /// Where `rec` leaves the region of input space the model is known on (a data-driven
+    /// model: its training record's); empty for a physical model.
+    fn outside(&self, _rec: &IoRecord) -> Vec<crate::narx::region::Outside> {
+        Vec::new()
+    }
+
     /// Select this model's inputs and outputs from a record (clear error if they are not there).
     fn select(&self, rec: &Record) -> Result<IoRecord, ModelError> {
         Ok(IoRecord::from_record(
@@ -157,6 +163,9 @@ impl Model for crate::narx::FittedNarx {
     }
     fn effects(&self) -> Vec<EffectName> {
         Vec::new()
+    }
+    fn outside(&self, rec: &IoRecord) -> Vec<crate::narx::region::Outside> {
+        crate::narx::FittedNarx::outside(self, rec)
     }
     /// Free run from the record's first measured outputs (the model's initial condition).
     fn predict(&self, rec: &IoRecord) -> Result<Vec<Vec<f64>>, ModelError> {

@@ -922,3 +922,68 @@ fn an_oversampled_record_is_modelled_at_a_coarser_sampling() {
     let (train, _) = common::record(plant, steps, 0.02).split_halves();
     assert!(cfg.decimation_candidates(&train).is_empty());
 }
+
+/// Honest extrapolation: a test half that doubles the training amplitude makes `identify` warn
+/// (with the share of samples and where) and list it in `--json`; `compare` and `predict` say
+/// the same; a test half like the training half raises nothing.
+#[test]
+fn identify_warns_when_the_test_half_leaves_the_training_region() {
+    let t = tempfile::tempdir().unwrap();
+    let plant = common::root().join("plants/bouc_wen_piezo.json");
+    let scenario = |amp2: f64| {
+        format!(
+            r#"{{"name": "doubling", "sampling_period_s": 0.0002, "samples": 4000, "noise_std": 0.01,
+            "inputs": [{{"concat": [
+              {{"duration_s": 0.4, "excitation": {{"sine": {{"amplitude": 20.0, "frequency_hz": 10.0}}}}}},
+              {{"duration_s": 0.4, "excitation": {{"sine": {{"amplitude": {amp2}, "frequency_hz": 10.0}}}}}}]}}]}}"#
+        )
+    };
+    for (amp2, warns) in [(40.0, true), (20.0, false)] {
+        let sc = common::write(t.path(), &format!("s{amp2}.json"), &scenario(amp2));
+        let data = t.path().join(format!("d{amp2}.csv"));
+        let o = common::hystbench(&[
+            "simulate",
+            "--plant",
+            common::s(&plant),
+            "--scenario",
+            common::s(&sc),
+            "--out",
+            common::s(&data),
+        ]);
+        assert!(o.status.success(), "{}", common::stderr(&o));
+        let model = t.path().join(format!("m{amp2}.json"));
+        let o = identify(&data, &model, &["--json"]);
+        assert!(o.status.success(), "{}", common::stderr(&o));
+        let err = common::stderr(&o);
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let ex = v["extrapolation"].as_array().unwrap();
+        if warns {
+            assert!(err.contains("beyond the training range"), "{err}");
+            let amp = ex
+                .iter()
+                .find(|e| e["what"].as_str().unwrap().contains("beyond"))
+                .unwrap();
+            let share = amp["share"].as_f64().unwrap();
+            assert!(share > 0.2 && share < 0.9, "{amp}");
+            let test_half = t.path().join("second.csv");
+            let text = std::fs::read_to_string(&data).unwrap();
+            let lines: Vec<&str> = text.lines().collect();
+            let second: Vec<&str> = std::iter::once(lines[0])
+                .chain(lines[1 + lines.len() / 2..].iter().copied())
+                .collect();
+            std::fs::write(&test_half, second.join("\n") + "\n").unwrap();
+            let o = common::hystbench(&[
+                "compare",
+                "--model",
+                common::s(&model),
+                "--data",
+                common::s(&test_half),
+                "--json",
+            ]);
+            assert!(common::stderr(&o).contains("beyond the training range"));
+        } else {
+            assert!(!err.contains("warning"), "{err}");
+            assert!(ex.is_empty(), "{ex:?}");
+        }
+    }
+}

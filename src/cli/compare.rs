@@ -33,6 +33,8 @@ pub fn predict_record(
     model: &dyn Model,
 ) -> anyhow::Result<(IoRecord, Vec<Vec<f64>>)> {
     let io = model.select(&read_csv(data)?)?;
+    // said before predicting: a free run that extrapolates may diverge
+    crate::cli::warn_outside(data, &model.outside(&io));
     let pred = predict_io(model, &io)?;
     Ok((io, pred))
 }
@@ -123,6 +125,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         crate::cli::demo::prepare_report_folder(dir, a.force)?;
     }
     let (io, pred) = predict_record(&a.data, model.as_ref())?;
+    let outside = model.outside(&io);
     let cmp = compare(&io, &pred);
     let md = markdown(model.as_ref(), &a.data, &cmp);
     if let Some(dir) = &a.report {
@@ -142,7 +145,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     if a.json {
         crate::cli::print(&serde_json::to_string(
-            &serde_json::json!({ "outputs": cmp }),
+            &serde_json::json!({ "outputs": cmp, "extrapolation": outside }),
         )?);
     } else {
         crate::cli::print(&md);

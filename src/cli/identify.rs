@@ -286,6 +286,8 @@ fn run_with(
         .context("training failed; nothing written")?;
     let eval = model.evaluate(&train, &test)?;
     write_atomic(&args.out, model.to_json().as_bytes(), args.force)?;
+    let outside = model.outside(&test);
+    crate::cli::warn_outside(args.test.as_ref().unwrap_or(&args.data), &outside);
     if args.json {
         let mut outs = serde_json::Map::new();
         for e in &eval {
@@ -295,6 +297,7 @@ fn run_with(
         if let Some(ds) = &model.decimation_selection {
             v["decimation"] = serde_json::json!({"chosen": ds.chosen, "tried": ds.tried});
         }
+        v["extrapolation"] = serde_json::to_value(&outside)?;
         if let Some(fs) = &model.feature_selection {
             v["feature_selection"] = serde_json::json!({
                 "tried": fs.tried,

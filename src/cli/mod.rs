@@ -73,6 +73,20 @@ where
     clap::builder::PossibleValuesParser::new(names).try_map(|s| s.parse::<T>())
 }
 
+/// Warn on standard error where a record leaves the region a model was trained on.
+pub fn warn_outside(record: &std::path::Path, outside: &[hystbench::narx::region::Outside]) {
+    if outside.is_empty() {
+        return;
+    }
+    eprintln!(
+        "warning: {}: the record leaves the region of inputs the model was trained on; its predictions there are extrapolations:",
+        record.display()
+    );
+    for o in outside {
+        eprintln!("  - {o}");
+    }
+}
+
 /// Print to standard output, ending with a newline; a closed pipe (`| head`) is not an error.
 pub fn print(text: &str) {
     use std::io::Write;

@@ -26,6 +26,7 @@ use super::model::{
     best_restart, input_slices, names_str, DecimationSelection, FeatureSelection, FittedNarx,
     LinearProbe, OutputModel, OutputTraining, RestartRecord, DIVERGENCE_RANGES,
 };
+use super::region::InputRegion;
 use super::regressors::{inverse_std, Regressor, RegressorForm, Series, Standardiser};
 use super::train::{
     free_run_score, init_output_layer, linear_output_layer, train_one_step, train_simulation_error,
@@ -113,6 +114,7 @@ impl NarxConfig {
         let m = self.fit_selecting_features(train)?;
         let m = self.probe_linear(train, m)?;
         let mut m = self.choose_decimation(train, m)?;
+        m.input_region = Some(InputRegion::of(std::slice::from_ref(train)));
         m.train_seconds = t0.elapsed().as_secs_f64();
         Ok(m)
     }
@@ -287,6 +289,7 @@ impl NarxConfig {
         }
         let mut m = self.fit_fixed(records)?;
         m.config.robust.try_features.clear();
+        m.input_region = Some(InputRegion::of(records));
         Ok(m)
     }
 
@@ -385,6 +388,7 @@ impl NarxConfig {
             feature_selection: None,
             decimation_selection: None,
             linear_probe: None,
+            input_region: None,
         })
     }
 

@@ -26,6 +26,7 @@ pub mod fit;
 pub mod kernel;
 pub mod mlp;
 pub mod model;
+pub mod region;
 pub mod regressors;
 pub mod synthetic;
 pub mod train;

@@ -105,6 +105,10 @@ pub struct FittedNarx {
     /// The short-record probe of the linear candidate, per output (`None`: not run).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub linear_probe: Option<Vec<LinearProbe>>,
+    /// The region of input space the training record covered (`None`: a model file written
+    /// before it was kept).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub input_region: Option<super::region::InputRegion>,
 }
 
 /// The linear probe of one output on a short record: the free-run MSE on the held-out tail of
@@ -210,6 +214,14 @@ pub(crate) fn best_restart<'a>(records: impl Iterator<Item = &'a RestartRecord>)
 }
 
 impl FittedNarx {
+    /// Where `rec` leaves the region of input space the model was trained on (empty: inside,
+    /// or a model file without its region).
+    pub fn outside(&self, rec: &IoRecord) -> Vec<super::region::Outside> {
+        self.input_region
+            .as_ref()
+            .map_or_else(Vec::new, |r| r.outside(rec))
+    }
+
     /// The free-run validation MSE that selected each output's restart, summed over outputs;
     /// `None` if any is missing (a diverged free run, or the study protocol).
     pub fn selection_mse(&self) -> Option<f64> {
