@@ -271,6 +271,11 @@ fn summarise(class: Class, records: &[RecordScore]) -> Option<ClassSummary> {
     })
 }
 
+/// `k (p %)` of `n`.
+fn share(k: usize, n: usize) -> String {
+    format!("{k} ({:.0} %)", 100.0 * k as f64 / n.max(1) as f64)
+}
+
 fn cell(v: Option<f64>) -> String {
     v.map_or("diverged".into(), |x| {
         if x.abs() >= 1e-3 || x == 0.0 {
@@ -325,7 +330,6 @@ impl ZooScore {
         s += "| class | records | outputs | R^2 min | 5 % | 25 % | median | >= 0.99 | >= 0.999 | diverged | records all >= 0.99 | ARX median | ARX >= 0.99 | ARX diverged | worse than ARX | truth >= 0.999 | within 0.001 of truth | median train-test gap | median time |\n";
         s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
         for c in &self.classes {
-            let share = |k: usize, n: usize| format!("{k} ({:.0} %)", 100.0 * k as f64 / n as f64);
             let _ = writeln!(
                 s,
                 "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2} s |",
@@ -353,7 +357,6 @@ impl ZooScore {
         s += "\nAgainst the noiseless output (the model's own error, without the measurement noise):\n\n";
         s += "| class | outputs | R^2 5 % | median | >= 0.99 | >= 0.999 | ARX median | ARX >= 0.99 | ARX >= 0.999 |\n|---|---|---|---|---|---|---|---|---|\n";
         for c in &self.classes {
-            let share = |k: usize, n: usize| format!("{k} ({:.0} %)", 100.0 * k as f64 / n as f64);
             let _ = writeln!(
                 s,
                 "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
