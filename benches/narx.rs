@@ -133,6 +133,7 @@ fn main() {
                 c.seed = i as u64;
                 // as `hystbench sweep`: the grid studies the plain network (no feature selection)
                 c.robust.try_features.clear();
+                c.robust.try_decimation = false;
                 let m = c.fit(&train).unwrap();
                 m.evaluate(&train, &test).unwrap()[0].r2_fr_test
             })

@@ -145,8 +145,10 @@ fn config(a: &SweepArgs, s: &Setting, inputs: Vec<String>, outputs: Vec<String>)
         ensemble: None,
     };
     let mut c = net.config(inputs, outputs, s.lags, s.lr, s.batch);
-    // the grid studies the plain network (and keeps the study grid's time): no feature selection
+    // the grid studies the plain network at each setting (and keeps the study grid's time): no
+    // feature selection, no choice of the model's sampling
     c.robust.try_features.clear();
+    c.robust.try_decimation = false;
     c
 }
 
