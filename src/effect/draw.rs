@@ -9,8 +9,6 @@ use super::noise::Gaussian;
 pub struct DrawContext {
     /// Sampling period (s).
     pub ts: f64,
-    /// The record's length (s).
-    pub duration_s: f64,
     /// The peak input the excitation reaches (input units).
     pub input_amplitude: f64,
     /// The direct path of an output, or a cross path (another axis' input).
@@ -68,11 +66,6 @@ impl Dice {
         }
         weights.len() - 1
     }
-
-    /// A standard normal variate.
-    pub fn normal(&mut self) -> f64 {
-        self.0.standard_normal()
-    }
 }
 
 #[cfg(test)]
@@ -93,6 +86,9 @@ mod tests {
         }
         let a: Vec<f64> = (0..5).map(|_| Dice::new(9, 2).uniform(0.0, 1.0)).collect();
         assert!(a.windows(2).all(|w| w[0] == w[1]));
-        assert_ne!(Dice::new(9, 2).normal(), Dice::new(9, 3).normal());
+        assert_ne!(
+            Dice::new(9, 2).uniform(0.0, 1.0),
+            Dice::new(9, 3).uniform(0.0, 1.0)
+        );
     }
 }

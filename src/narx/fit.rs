@@ -629,7 +629,8 @@ impl NarxConfig {
         if !linear_output_layer(&mut net, &d.d_fit, 1e-8) {
             return None;
         }
-        Some((net.clone(), self.validation_mse(&net, d)))
+        let mse = self.validation_mse(&net, d);
+        Some((net, mse))
     }
 
     /// The mean free-run validation MSE over the records (`None`: a free run diverged).

@@ -505,13 +505,7 @@ impl PlantSpec {
         let mut filters = Vec::new();
         for (i, e) in out.effects.iter().enumerate() {
             let name = e.effect();
-            if out.effects[..i].iter().any(|x| x.effect() == name) {
-                return Err(structure_error(
-                    file,
-                    &format!("{at}.{name}"),
-                    "is given twice".into(),
-                ));
-            }
+            refuse_repeated(file, &at, &out.effects[..i], name)?;
             if !matches!(
                 registry::effect(name).map(|e| e.slot()),
                 Some(Slot::Filter | Slot::OutputFilter)
@@ -569,13 +563,7 @@ impl PlantSpec {
         let (mut terms, mut filters) = (Vec::new(), Vec::new());
         for (i, e) in path.effects.iter().enumerate() {
             let name = e.effect();
-            if path.effects[..i].iter().any(|x| x.effect() == name) {
-                return Err(structure_error(
-                    file,
-                    &format!("{at}.{name}"),
-                    "is given twice".into(),
-                ));
-            }
+            refuse_repeated(file, at, &path.effects[..i], name)?;
             let p = e
                 .check()
                 .map_err(|err| effect_error(file, format!("{at}.{name}"), err))?;
@@ -609,6 +597,23 @@ impl PlantSpec {
             filters,
         })
     }
+}
+
+/// An effect may stand once in a path or an output: `name` against the effects before it.
+fn refuse_repeated(
+    file: &Path,
+    at: &str,
+    before: &[Box<dyn EffectSpec>],
+    name: EffectName,
+) -> Result<(), PlantError> {
+    if before.iter().any(|x| x.effect() == name) {
+        return Err(structure_error(
+            file,
+            &format!("{at}.{name}"),
+            "is given twice".into(),
+        ));
+    }
+    Ok(())
 }
 
 fn structure_error(file: &Path, field: &str, rule: String) -> PlantError {

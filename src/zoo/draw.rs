@@ -134,7 +134,7 @@ pub fn member(seed: u64, index: usize) -> Member {
         (1..=axes).map(|i| format!("u{i}")).collect()
     };
     let amplitudes: Vec<f64> = (0..axes).map(|_| dice.log_uniform(5.0, 150.0)).collect();
-    let (outputs, words) = draw_outputs(&mut dice, &inputs, &amplitudes, ts, duration_s);
+    let (outputs, words) = draw_outputs(&mut dice, &inputs, &amplitudes, ts);
     let top = outputs
         .iter()
         .filter_map(|o| {
@@ -209,7 +209,6 @@ fn draw_outputs(
     inputs: &[String],
     amplitudes: &[f64],
     ts: f64,
-    duration_s: f64,
 ) -> (Vec<OutputSpec>, String) {
     let axes = inputs.len();
     let two_way = dice.chance(0.6);
@@ -234,7 +233,6 @@ fn draw_outputs(
             };
             let ctx = DrawContext {
                 ts,
-                duration_s,
                 input_amplitude: amplitudes[i],
                 role,
             };
@@ -244,7 +242,6 @@ fn draw_outputs(
         }
         let ctx = DrawContext {
             ts,
-            duration_s,
             input_amplitude: amplitudes[o],
             role: PathRole::Direct,
         };

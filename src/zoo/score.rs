@@ -146,30 +146,34 @@ fn score_member(dir: &Path, e: &IndexEntry) -> Result<RecordScore, ZooError> {
         .fit(&train)
         .map_err(narx_err)?;
     let seconds = t0.elapsed().as_secs_f64();
-    let eval = model.evaluate(&train, &test).map_err(narx_err)?;
-    let free = model
-        .predict(&test, crate::narx::Mode::FreeRun)
-        .map_err(narx_err)?;
+    // the two free runs the score needs (what `evaluate` scores, without its one-step runs)
+    let free_run = |rec: &IoRecord| model.predict(rec, crate::narx::Mode::FreeRun);
+    let fr_train = free_run(&train).map_err(narx_err)?;
+    let fr_test = free_run(&test).map_err(narx_err)?;
     let arx = fit_arx(&train, model.config.lags).map_err(narx_err)?;
     let runs = arx.free_run(&test);
     let truth = noiseless(dir, e)?;
     let h = train.len();
-    let outputs = eval
-        .iter()
-        .zip(&runs)
-        .zip(&test.outputs)
-        .zip(&truth)
-        .zip(&free)
-        .map(|((((ev, run), y), clean), fr)| OutputScore {
-            name: ev.name.clone(),
-            r2: ev.r2_fr_test,
-            diverged: ev.diverged_at_test.is_some(),
-            r2_train: ev.r2_fr_train,
-            arx_r2: run.scores(&y.values).and_then(|s| s.r2),
-            arx_diverged: run.diverged_at.is_some(),
-            truth_r2: crate::metrics::r2(&y.values, &clean[h..]),
-            r2_clean: clean_r2(&clean[h..], &fr.values, fr.start, fr.diverged_at),
-            arx_r2_clean: clean_r2(&clean[h..], &run.values, run.start, run.diverged_at),
+    let r2 = |p: &crate::narx::OutputPrediction, y: &[f64]| p.scores(y).and_then(|s| s.r2);
+    let outputs = (0..test.outputs.len())
+        .map(|o| {
+            let (y, fr, run, clean) = (
+                &test.outputs[o].values,
+                &fr_test[o],
+                &runs[o],
+                &truth[o][h..],
+            );
+            OutputScore {
+                name: fr.name.clone(),
+                r2: r2(fr, y),
+                diverged: fr.diverged_at.is_some(),
+                r2_train: r2(&fr_train[o], &train.outputs[o].values),
+                arx_r2: run.scores(y).and_then(|s| s.r2),
+                arx_diverged: run.diverged_at.is_some(),
+                truth_r2: crate::metrics::r2(y, clean),
+                r2_clean: clean_r2(clean, &fr.values, fr.start, fr.diverged_at),
+                arx_r2_clean: clean_r2(clean, &run.values, run.start, run.diverged_at),
+            }
         })
         .collect();
     Ok(RecordScore {
