@@ -53,6 +53,12 @@ pub trait Model {
     /// Free-run prediction of every output for the inputs of `rec`.
     fn predict(&self, rec: &IoRecord) -> Result<Vec<Vec<f64>>, ModelError>;
 
+    /// The half-width of each output's free-run prediction band at each sample, where the model
+    /// has one (a NARX model's, [`crate::narx::band`]); `None` per output otherwise.
+    fn band(&self, rec: &IoRecord) -> Result<Vec<Option<Vec<f64>>>, ModelError> {
+        Ok(vec![None; rec.outputs.len()])
+    }
+
     /// Where `rec` leaves the region of input space the model is known on (a data-driven
     /// model: its training record's); empty for a physical model.
     fn outside(&self, _rec: &IoRecord) -> Vec<crate::narx::region::Outside> {
@@ -166,6 +172,10 @@ impl Model for crate::narx::FittedNarx {
     }
     fn outside(&self, rec: &IoRecord) -> Vec<crate::narx::region::Outside> {
         crate::narx::FittedNarx::outside(self, rec)
+    }
+    fn band(&self, rec: &IoRecord) -> Result<Vec<Option<Vec<f64>>>, ModelError> {
+        let preds = crate::narx::FittedNarx::predict(self, rec, crate::narx::Mode::FreeRun)?;
+        Ok(preds.into_iter().map(|p| p.half_width).collect())
     }
     /// Free run from the record's first measured outputs (the model's initial condition).
     fn predict(&self, rec: &IoRecord) -> Result<Vec<Vec<f64>>, ModelError> {

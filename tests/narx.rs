@@ -499,7 +499,10 @@ fn cli_identify_predict_and_refusals() {
         String::from_utf8_lossy(&out.stderr)
     );
     let text = std::fs::read_to_string(&pred).unwrap();
-    assert_eq!(text.lines().next().unwrap(), "t,u1,u2,y1,y2,y1_hat,y2_hat");
+    assert_eq!(
+        text.lines().next().unwrap(),
+        "t,u1,u2,y1,y2,y1_hat,y1_lo,y1_hi,y2_hat,y2_lo,y2_hi"
+    );
     assert_eq!(text.lines().count(), 501);
     // unknown column and constant output: clear error, nothing written
     let bad = dir.path().join("bad.json");
@@ -682,7 +685,7 @@ fn cli_identify_with_features_and_predict_on_another_record() {
         String::from_utf8_lossy(&out.stderr)
     );
     let p = std::fs::read_to_string(&pred).unwrap();
-    assert_eq!(p.lines().next().unwrap(), "t,u,y,y_hat");
+    assert_eq!(p.lines().next().unwrap(), "t,u,y,y_hat,y_lo,y_hi");
     let (mut y, mut yh) = (Vec::new(), Vec::new());
     for l in p.lines().skip(1) {
         let c: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
@@ -986,4 +989,70 @@ fn identify_warns_when_the_test_half_leaves_the_training_region() {
             assert!(ex.is_empty(), "{ex:?}");
         }
     }
+}
+
+/// Prediction bands: calibrated on the training record's validation part, they hold about 95 %
+/// of a test half like the training half; they survive the model file; `predict` writes them as
+/// `y_lo`, `y_hi` around `y_hat`, and `compare --json` reports their coverage.
+#[test]
+fn prediction_bands_hold_a_test_half_like_the_training_half() {
+    let plant = std::fs::read_to_string(common::root().join("plants/bouc_wen_piezo.json")).unwrap();
+    let scenario = r#"{"name": "multisine", "sampling_period_s": 0.0005, "samples": 4000,
+        "inputs": [{"multisine": {"amplitude": 30.0, "f_min_hz": 1.0, "f_max_hz": 20.0,
+        "period_s": 1.0}}]}"#;
+    let rec = common::record(&plant, scenario, 0.05);
+    let (train, test) = rec.split_halves();
+    let m = config(&rec).fit(&train).expect("fit");
+    let band = m.outputs[0].band.clone().expect("a band");
+    assert!(band.quantile > 0.0 && band.rms > 0.0, "{band:?}");
+    let p = &m.predict(&test, Mode::FreeRun).unwrap()[0];
+    let h = p.half_width.as_ref().expect("a free run carries its band");
+    assert!(h.iter().all(|v| v.is_finite() && *v > 0.0));
+    let c =
+        hystbench::narx::band::coverage(&test.outputs[0].values, &p.values, h, p.start).unwrap();
+    assert!(c >= 0.85, "coverage {c}");
+    // one-step predictions carry none
+    assert!(m.predict(&test, Mode::OneStep).unwrap()[0]
+        .half_width
+        .is_none());
+    // the model file keeps it
+    let back = FittedNarx::from_json(std::path::Path::new("m.json"), &m.to_json()).unwrap();
+    assert_eq!(back.predict(&test, Mode::FreeRun).unwrap()[0], *p);
+
+    let t = tempfile::tempdir().unwrap();
+    let data = write_record(t.path(), "test.csv", &test);
+    let model = t.path().join("m.json");
+    std::fs::write(&model, m.to_json()).unwrap();
+    let out = t.path().join("p.csv");
+    let o = common::hystbench(&[
+        "predict",
+        "--model",
+        common::s(&model),
+        "--data",
+        common::s(&data),
+        "--out",
+        common::s(&out),
+    ]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let text = std::fs::read_to_string(&out).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+    let (hat, lo, hi) = (col("y_hat"), col("y_lo"), col("y_hi"));
+    for line in text.lines().skip(1) {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        assert!(v[lo] < v[hat] && v[hat] < v[hi], "{line}");
+    }
+    let o = common::hystbench(&[
+        "compare",
+        "--model",
+        common::s(&model),
+        "--data",
+        common::s(&data),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let b = &v["bands"][0];
+    assert_eq!(b["output"], "y");
+    assert!(b["coverage"].as_f64().unwrap() >= 0.85, "{b}");
 }

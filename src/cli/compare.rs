@@ -44,8 +44,45 @@ pub fn predict_io(model: &dyn Model, io: &IoRecord) -> anyhow::Result<Vec<Vec<f6
     Ok(hystbench::model::predict_finite(model, io)?)
 }
 
+/// How one output's prediction band held the measurement.
+#[derive(Debug, serde::Serialize)]
+pub struct BandCoverage {
+    pub output: String,
+    pub level: f64,
+    /// Share of the samples inside prediction +- half-width.
+    pub coverage: f64,
+    pub mean_half_width: f64,
+}
+
+/// The coverage of each output's band (outputs without a band are left out).
+pub fn band_coverage(
+    io: &IoRecord,
+    pred: &[Vec<f64>],
+    bands: &[Option<Vec<f64>>],
+) -> Vec<BandCoverage> {
+    io.outputs
+        .iter()
+        .zip(pred)
+        .zip(bands)
+        .filter_map(|((y, p), h)| {
+            let h = h.as_ref()?;
+            Some(BandCoverage {
+                output: y.name.clone(),
+                level: hystbench::narx::band::BAND_LEVEL,
+                coverage: hystbench::narx::band::coverage(&y.values, p, h, 0)?,
+                mean_half_width: h.iter().sum::<f64>() / h.len().max(1) as f64,
+            })
+        })
+        .collect()
+}
+
 /// The comparison as Markdown.
-pub fn markdown(model: &dyn Model, data: &std::path::Path, cmp: &[OutputComparison]) -> String {
+pub fn markdown(
+    model: &dyn Model,
+    data: &std::path::Path,
+    cmp: &[OutputComparison],
+    bands: &[BandCoverage],
+) -> String {
     let mut s = format!("# {} against {}\n\n", model.describe(), data.display());
     for c in cmp {
         let u = unit_of(&c.output);
@@ -67,6 +104,15 @@ pub fn markdown(model: &dyn Model, data: &std::path::Path, cmp: &[OutputComparis
             sc.max_error,
             sc.n
         );
+        if let Some(b) = bands.iter().find(|b| b.output == c.output) {
+            let _ = writeln!(
+                s,
+                "Prediction band ({:.0} %): holds {:.1} % of the measured samples (mean half-width {:.4} {u}).\n",
+                100.0 * b.level,
+                100.0 * b.coverage,
+                b.mean_half_width
+            );
+        }
         let _ = writeln!(
             s,
             "Residual-against-{} loop area: {:.4} (0 for a model with the right memory).\n",
@@ -106,10 +152,14 @@ pub fn write_figures(
     dir: &std::path::Path,
     io: &IoRecord,
     pred: &[Vec<f64>],
+    bands: &[Option<Vec<f64>>],
 ) -> anyhow::Result<Vec<String>> {
     let mut rec = hystbench::plot::PlotRecord::from_io("measured", io.clone());
     for (j, p) in pred.iter().enumerate() {
         rec = rec.with_prediction(j, p.clone())?;
+        if let Some(h) = bands.get(j).and_then(Option::as_ref) {
+            rec = rec.with_band(j, h.clone())?;
+        }
     }
     // staged together: all figures or none
     let paths = hystbench::plot::report_figures(&rec, dir, "", true)?;
@@ -127,15 +177,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let (io, pred) = predict_record(&a.data, model.as_ref())?;
     let outside = model.outside(&io);
     let cmp = compare(&io, &pred);
-    let md = markdown(model.as_ref(), &a.data, &cmp);
+    let bands = model.band(&io)?;
+    let coverage = band_coverage(&io, &pred, &bands);
+    let md = markdown(model.as_ref(), &a.data, &cmp, &coverage);
     if let Some(dir) = &a.report {
         let (mut names, mut cols) = io.to_columns();
-        for (s, p) in io.outputs.iter().zip(&pred) {
+        for ((s, p), h) in io.outputs.iter().zip(&pred).zip(&bands) {
             names.push(format!("{}_hat", s.name));
             cols.push(p.clone());
+            if let Some(h) = h {
+                names.extend([format!("{}_lo", s.name), format!("{}_hi", s.name)]);
+                cols.push(p.iter().zip(h).map(|(v, h)| v - h).collect());
+                cols.push(p.iter().zip(h).map(|(v, h)| v + h).collect());
+            }
         }
         hystbench::data::write_csv_atomic(&dir.join("prediction.csv"), &names, &cols, true)?;
-        let figures = write_figures(dir, &io, &pred)?;
+        let figures = write_figures(dir, &io, &pred, &bands)?;
         let mut report = format!("{md}## Figures\n\n");
         for f in figures {
             report += &format!("![{f}]({f})\n\n");
@@ -145,7 +202,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     if a.json {
         crate::cli::print(&serde_json::to_string(
-            &serde_json::json!({ "outputs": cmp, "extrapolation": outside }),
+            &serde_json::json!({ "outputs": cmp, "bands": coverage, "extrapolation": outside }),
         )?);
     } else {
         crate::cli::print(&md);

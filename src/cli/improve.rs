@@ -126,7 +126,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         None,
         true,
     )?;
-    let figures = write_figures(&a.out, &io_all, &pred)?;
+    let figures = write_figures(&a.out, &io_all, &pred, &[])?;
     let md = report(&a.data, &io_all, from, &rungs, &figures);
     hystbench::data::write_atomic(&a.out.join("report.md"), md.as_bytes(), true)?;
     if a.json {

@@ -18,7 +18,8 @@ pub struct PredictArgs {
     /// `free-run` feeds back the model's own outputs; `one-step` uses the measured ones.
     #[arg(long, value_parser = super::choice::<Mode>(Mode::NAMES), default_value = "free-run")]
     pub mode: Mode,
-    /// CSV to write: t, inputs, measured outputs if present, `<output>_hat` per output.
+    /// CSV to write: t, inputs, measured outputs if present, `<output>_hat` per output, and in
+    /// free run its 95 % prediction band `<output>_lo`, `<output>_hi` (when the model has one).
     #[arg(long)]
     pub out: PathBuf,
     /// Overwrite an existing file.
@@ -65,8 +66,17 @@ pub fn run(args: PredictArgs) -> anyhow::Result<()> {
     }
     let (mut names, mut cols) = rec.to_columns();
     for p in preds {
+        let band = p.half_width.as_ref().map(|h| {
+            let lo = p.values.iter().zip(h).map(|(v, h)| v - h).collect();
+            let hi = p.values.iter().zip(h).map(|(v, h)| v + h).collect();
+            (lo, hi)
+        });
         names.push(format!("{}_hat", p.name));
         cols.push(p.values);
+        if let Some((lo, hi)) = band {
+            names.extend([format!("{}_lo", p.name), format!("{}_hi", p.name)]);
+            cols.extend([lo, hi]);
+        }
     }
     write_csv_atomic(&args.out, &names, &cols, args.force)?;
     eprintln!("wrote {}", args.out.display());

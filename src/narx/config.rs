@@ -210,6 +210,11 @@ pub struct RobustSettings {
     /// samples per phase) and keep the one with the lowest free-run validation error.
     #[serde(default = "yes")]
     pub try_decimation: bool,
+    /// Restarts, the prediction's own networks included, whose free runs' spread widens the
+    /// prediction band where they part ([`crate::narx::band`]); 1: a band of constant width
+    /// around one network.
+    #[serde(default = "band_restarts")]
+    pub band_restarts: usize,
 }
 
 /// Networks kept per output on short records (the median of 8 free runs: one or two members
@@ -248,6 +253,10 @@ impl Combine {
     }
 }
 
+fn band_restarts() -> usize {
+    SHORT_ENSEMBLE
+}
+
 fn feature_gain() -> f64 {
     0.1
 }
@@ -279,6 +288,7 @@ impl Default for RobustSettings {
             ensemble: None,
             combine: Combine::Median,
             try_decimation: true,
+            band_restarts: band_restarts(),
         }
     }
 }

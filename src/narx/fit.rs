@@ -20,11 +20,13 @@
 //! - S. Chen, S. A. Billings, P. M. Grant, Int. J. Control 51(6):1191-1214, 1990.
 //! - A. H. Ribeiro, L. A. Aguirre, Neurocomputing 316:222-231, 2018 (simulation error).
 
+use super::band::{Band, BAND_LEVEL};
 use super::config::{NarxConfig, Protocol, RobustSettings};
 use super::mlp::Mlp;
 use super::model::{
-    best_restart, input_slices, names_str, DecimationSelection, FeatureSelection, FittedNarx,
-    LinearProbe, OutputModel, OutputTraining, RestartRecord, DIVERGENCE_RANGES,
+    best_restart, ensemble_free_run, input_slices, names_str, DecimationSelection,
+    FeatureSelection, FittedNarx, LinearProbe, OutputModel, OutputTraining, RestartRecord,
+    DIVERGENCE_RANGES,
 };
 use super::region::InputRegion;
 use super::regressors::{inverse_std, Regressor, RegressorForm, Series, Standardiser};
@@ -124,6 +126,7 @@ impl NarxConfig {
     /// plain network (up to 4 restarts) and the linear candidate trained on the record but its
     /// last [`PROBE_TAIL`], and run free on that tail. Outputs whose linear
     /// candidate validates at least as well there are refitted linear on the whole record.
+    /// The probe's prediction bands, calibrated on that tail, become the model's.
     fn probe_linear(&self, train: &IoRecord, m: FittedNarx) -> Result<FittedNarx, NarxError> {
         let n = train.len();
         if self.protocol != Protocol::Default
@@ -136,6 +139,7 @@ impl NarxConfig {
         probe.robust.validation_fraction = PROBE_TAIL;
         probe.robust.restarts = Some(self.robust.restarts_for(n).min(4));
         probe.robust.ensemble = Some(1);
+        probe.robust.band_restarts = 1;
         probe.robust.try_features.clear();
         let Ok(p) = probe.fit_fixed(std::slice::from_ref(train)) else {
             return Ok(m);
@@ -155,6 +159,13 @@ impl NarxConfig {
         } else {
             m
         };
+        // the bands: the probe's, calibrated on a tail its fit did not see (the final fit has
+        // no held-out part; its own residuals would give bands too narrow)
+        for (o, po) in out.outputs.iter_mut().zip(p.outputs) {
+            if po.band.is_some() {
+                o.band = po.band;
+            }
+        }
         out.linear_probe = Some(results);
         Ok(out)
     }
@@ -668,14 +679,25 @@ impl NarxConfig {
                 _ => false,
             };
         if linear_wins {
+            let net = linear_net.expect("a linear candidate");
+            // the networks widen the band where they part from it
+            let band_members: Vec<Mlp> = choose_ensemble(mine, chosen, mine.len())
+                .iter()
+                .filter(|&&i| mine[i].1.selection_mse.is_some())
+                .take(self.robust.band_restarts.saturating_sub(1))
+                .map(|&i| mine[i].0.clone())
+                .collect();
+            let band = self.calibrate_band(&[&net], &band_members.iter().collect::<Vec<_>>(), &d);
             return Ok(OutputModel {
                 name: name.clone(),
                 scaling: d.scaling,
                 train_min: d.train_min,
                 train_max: d.train_max,
                 regressor: d.reg,
-                network: linear_net.expect("a linear candidate"),
+                network: net,
                 ensemble: Vec::new(),
+                band,
+                band_members,
                 training: OutputTraining {
                     train_samples: mine[chosen].2,
                     validation_samples: mine[chosen].3,
@@ -696,6 +718,15 @@ impl NarxConfig {
         }
         let members = choose_ensemble(mine, chosen, size);
         let ensemble: Vec<Mlp> = members.iter().skip(1).map(|&i| mine[i].0.clone()).collect();
+        let all: Vec<&Mlp> = std::iter::once(&net).chain(&ensemble).collect();
+        // the other restarts (best validation first) widen the band where they part
+        let others = choose_ensemble(mine, chosen, self.robust.band_restarts.max(members.len()));
+        let band_members: Vec<Mlp> = others
+            .iter()
+            .filter(|i| !members.contains(i))
+            .map(|&i| mine[i].0.clone())
+            .collect();
+        let band = self.calibrate_band(&all, &band_members.iter().collect::<Vec<_>>(), &d);
         Ok(OutputModel {
             name: name.clone(),
             scaling: d.scaling,
@@ -704,6 +735,8 @@ impl NarxConfig {
             regressor: d.reg,
             network: net,
             ensemble,
+            band,
+            band_members,
             training: OutputTraining {
                 train_samples: mine[chosen].2,
                 validation_samples: mine[chosen].3,
@@ -718,6 +751,42 @@ impl NarxConfig {
                 linear: false,
             },
         })
+    }
+}
+
+impl NarxConfig {
+    /// The prediction band of an output's final members, calibrated on their free runs over
+    /// each training record, scored on its validation part (on the whole record without one;
+    /// [`super::band`]); `None` when a run diverged.
+    fn calibrate_band(&self, members: &[&Mlp], band_only: &[&Mlp], d: &OutputData) -> Option<Band> {
+        let (mut residuals, mut spreads) = (Vec::new(), Vec::new());
+        let start = self.lags.start();
+        for p in &d.parts {
+            // from the record's start, so that the validation residuals are those of a free
+            // run as long as the training record (a test record's free run drifts as far)
+            let run = ensemble_free_run(
+                members,
+                band_only,
+                &d.reg,
+                &p.s,
+                d.lo,
+                d.hi,
+                self.robust.combine,
+            );
+            if run.diverged_at.is_some() {
+                return None;
+            }
+            let from = if p.fit_end < p.s.len() {
+                p.fit_end
+            } else {
+                start
+            };
+            for k in from.max(start)..p.s.len() {
+                residuals.push((run.values[k] - p.s.y[k]) * d.scaling.std);
+                spreads.push(run.spread[k] * d.scaling.std);
+            }
+        }
+        Band::calibrate(&residuals, &spreads, BAND_LEVEL)
     }
 }
 

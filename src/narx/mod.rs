@@ -20,6 +20,7 @@
 //! - A. H. Ribeiro, L. A. Aguirre, Neurocomputing 316:222-231, 2018.
 
 pub mod arx;
+pub mod band;
 pub mod config;
 mod error;
 pub mod fit;

@@ -1,5 +1,7 @@
 //! The fitted NARX model: fitting (the driver), prediction, scores and the model file.
 
+use super::band::{spread, Band};
+use super::config::Combine;
 use super::config::NarxConfig;
 use super::mlp::Mlp;
 use super::regressors::{Regressor, Series, Standardiser};
@@ -78,6 +80,14 @@ pub struct OutputModel {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub ensemble: Vec<Mlp>,
     pub training: OutputTraining,
+    /// The prediction band calibrated on the validation part (`None`: none could be, or a
+    /// model file written before bands).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub band: Option<Band>,
+    /// Further restarts that only widen the band: their free runs count in the spread, not in
+    /// the prediction (the other restarts, best validation first; empty: none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub band_members: Vec<Mlp>,
 }
 
 impl OutputModel {
@@ -174,6 +184,9 @@ pub struct OutputPrediction {
     /// combination (listed here, and in the evaluation); when every member diverged, the
     /// output diverged.
     pub diverged_members: Vec<usize>,
+    /// Half-width of the prediction band at each sample (physical units; a free run of a model
+    /// with a calibrated band, [`super::band`]), else `None`.
+    pub half_width: Option<Vec<f64>>,
 }
 
 impl OutputPrediction {
@@ -316,6 +329,7 @@ impl FittedNarx {
                 .map(|s| &s.values[..]);
             let s = self.series(rec, o, measured);
             let mut diverged_members = Vec::new();
+            let mut half_width = None;
             let (z, diverged_at) = match mode {
                 Mode::OneStep => {
                     if measured.is_none() {
@@ -344,43 +358,33 @@ impl FittedNarx {
                     let r = (o.train_max - o.train_min).max(f64::MIN_POSITIVE);
                     let lo = (o.train_min - DIVERGENCE_RANGES * r - o.scaling.mean) / o.scaling.std;
                     let hi = (o.train_max + DIVERGENCE_RANGES * r - o.scaling.mean) / o.scaling.std;
-                    // one network or an ensemble: the members' free runs, combined where
-                    // they did not diverge
-                    let runs: Vec<(Vec<f64>, Option<usize>)> = o
-                        .members()
-                        .map(|net| free_run_fast(net, &o.regressor, &s, lo, hi))
-                        .collect();
-                    diverged_members.extend(
-                        runs.iter()
-                            .enumerate()
-                            .filter(|(_, r)| r.1.is_some())
-                            .map(|(i, _)| i),
-                    );
-                    let kept: Vec<&Vec<f64>> = runs
-                        .iter()
-                        .filter(|r| r.1.is_none())
-                        .map(|r| &r.0)
-                        .collect();
-                    let combine = self.config.robust.combine;
-                    let across = |runs: &[&Vec<f64>], len: usize| -> Vec<f64> {
-                        let mut v = vec![0.0; runs.len()];
-                        (0..len)
-                            .map(|t| {
-                                for (vj, r) in v.iter_mut().zip(runs) {
-                                    *vj = r[t];
-                                }
-                                combine.apply(&mut v)
-                            })
-                            .collect()
-                    };
-                    if kept.is_empty() {
-                        // every member diverged: the output diverged (the earliest)
-                        let len = runs.iter().map(|r| r.0.len()).min().unwrap_or(0);
-                        let all: Vec<&Vec<f64>> = runs.iter().map(|r| &r.0).collect();
-                        (across(&all, len), runs.iter().filter_map(|r| r.1).min())
+                    let members: Vec<&Mlp> = o.members().collect();
+                    let extra: Vec<&Mlp> = if o.band.is_some() {
+                        o.band_members.iter().collect()
                     } else {
-                        (across(&kept, s.len()), None)
-                    }
+                        Vec::new()
+                    };
+                    let run = ensemble_free_run(
+                        &members,
+                        &extra,
+                        &o.regressor,
+                        &s,
+                        lo,
+                        hi,
+                        self.config.robust.combine,
+                    );
+                    diverged_members = run.diverged_members;
+                    half_width = o
+                        .band
+                        .as_ref()
+                        .filter(|_| run.diverged_at.is_none())
+                        .map(|b| {
+                            run.spread
+                                .iter()
+                                .map(|sp| b.half_width(sp * o.scaling.std))
+                                .collect()
+                        });
+                    (run.values, run.diverged_at)
                 }
             };
             out.push(OutputPrediction {
@@ -389,6 +393,7 @@ impl FittedNarx {
                 start,
                 diverged_at,
                 diverged_members,
+                half_width,
             });
         }
         Ok(out)
@@ -484,7 +489,7 @@ impl FittedNarx {
                     o.name
                 ));
             }
-            for net in o.members() {
+            for net in o.members().chain(&o.band_members) {
                 if net.sizes.len() < 3
                     || net.sizes[0] != width
                     || net.sizes[net.sizes.len() - 1] != 1
@@ -505,6 +510,9 @@ impl FittedNarx {
                 if let Some(i) = net.params.iter().position(|p| !p.is_finite()) {
                     return Err(format!("output `{}`: parameter {i} is not finite", o.name));
                 }
+            }
+            if let Some(b) = &o.band {
+                b.check().map_err(|e| format!("output `{}`: {e}", o.name))?;
             }
             let sc = [o.scaling.mean, o.scaling.std, o.train_min, o.train_max];
             if !sc.iter().all(|v| v.is_finite()) || o.scaling.std <= 0.0 {
@@ -604,11 +612,90 @@ fn interleave(phases: Vec<&OutputPrediction>, s: usize, n: usize) -> OutputPredi
         .collect();
     diverged_members.sort_unstable();
     diverged_members.dedup();
+    let half_width = phases.iter().all(|ph| ph.half_width.is_some()).then(|| {
+        (0..len)
+            .map(|k| phases[k % s].half_width.as_ref().map_or(0.0, |h| h[k / s]))
+            .collect()
+    });
     OutputPrediction {
         name: phases[0].name.clone(),
         values: (0..len).map(|k| phases[k % s].values[k / s]).collect(),
         start: phases[0].start * s,
         diverged_at,
         diverged_members,
+        half_width,
+    }
+}
+
+/// The free run of an ensemble (standardised units): the members' runs combined sample by
+/// sample where they did not diverge, and the spread ([`spread`]) of those runs and of the
+/// band-only members' that did not diverge.
+pub(super) struct EnsembleRun {
+    pub values: Vec<f64>,
+    /// Set when every member diverged (the earliest).
+    pub diverged_at: Option<usize>,
+    pub diverged_members: Vec<usize>,
+    pub spread: Vec<f64>,
+}
+
+/// Runs every member (and band-only member) free on `s` and combines them ([`EnsembleRun`]).
+pub(super) fn ensemble_free_run(
+    members: &[&Mlp],
+    band_only: &[&Mlp],
+    reg: &Regressor,
+    s: &Series,
+    lo: f64,
+    hi: f64,
+    combine: Combine,
+) -> EnsembleRun {
+    let runs: Vec<(Vec<f64>, Option<usize>)> = members
+        .iter()
+        .map(|net| free_run_fast(net, reg, s, lo, hi))
+        .collect();
+    let diverged_members: Vec<usize> = runs
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.1.is_some())
+        .map(|(i, _)| i)
+        .collect();
+    let kept: Vec<&[f64]> = runs
+        .iter()
+        .filter(|r| r.1.is_none())
+        .map(|r| &r.0[..])
+        .collect();
+    let across = |runs: &[&[f64]], len: usize| -> Vec<f64> {
+        let mut v = vec![0.0; runs.len()];
+        (0..len)
+            .map(|t| {
+                for (vj, r) in v.iter_mut().zip(runs) {
+                    *vj = r[t];
+                }
+                combine.apply(&mut v)
+            })
+            .collect()
+    };
+    if kept.is_empty() {
+        // every member diverged: the output diverged (the earliest)
+        let len = runs.iter().map(|r| r.0.len()).min().unwrap_or(0);
+        let all: Vec<&[f64]> = runs.iter().map(|r| &r.0[..]).collect();
+        EnsembleRun {
+            values: across(&all, len),
+            diverged_at: runs.iter().filter_map(|r| r.1).min(),
+            diverged_members,
+            spread: vec![0.0; len],
+        }
+    } else {
+        let extra: Vec<(Vec<f64>, Option<usize>)> = band_only
+            .iter()
+            .map(|net| free_run_fast(net, reg, s, lo, hi))
+            .collect();
+        let mut all = kept.clone();
+        all.extend(extra.iter().filter(|r| r.1.is_none()).map(|r| &r.0[..]));
+        EnsembleRun {
+            values: across(&kept, s.len()),
+            diverged_at: None,
+            diverged_members,
+            spread: spread(&all, s.len()),
+        }
     }
 }

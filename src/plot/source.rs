@@ -17,6 +17,9 @@ pub struct PlotRecord {
     pub io: IoRecord,
     /// One entry per output of `io`: the predicted signal, if the record has one.
     pub predicted: Vec<Option<Vec<f64>>>,
+    /// One entry per output: the half-width of the prediction band at each sample, if the
+    /// record has one (`<output>_lo` and `<output>_hi` columns, as `hystbench predict` writes).
+    pub band: Vec<Option<Vec<f64>>>,
     /// The record's column names, listed in errors.
     pub columns: Vec<String>,
     /// Units given by the caller (column, unit), for columns whose names carry none
@@ -33,6 +36,7 @@ impl PlotRecord {
         PlotRecord {
             label: label.into(),
             predicted: vec![None; io.outputs.len()],
+            band: vec![None; io.outputs.len()],
             io,
             columns,
             units: Vec::new(),
@@ -55,6 +59,23 @@ impl PlotRecord {
         self.columns
             .push(format!("{}_hat", self.io.outputs[j].name));
         self.predicted[j] = Some(values);
+        Ok(self)
+    }
+
+    /// Adds the band of output `j`'s prediction (half-widths, one per sample).
+    pub fn with_band(mut self, j: usize, half_width: Vec<f64>) -> Result<PlotRecord, PlotError> {
+        if j >= self.io.outputs.len() || half_width.len() != self.io.len() {
+            return Err(PlotError::Invalid {
+                what: format!("prediction band for output {j} of {}", self.label),
+                problem: format!(
+                    "the record has {} outputs and {} samples; the band has {} samples",
+                    self.io.outputs.len(),
+                    self.io.len(),
+                    half_width.len()
+                ),
+            });
+        }
+        self.band[j] = Some(half_width);
         Ok(self)
     }
 
@@ -86,14 +107,24 @@ impl PlotRecord {
             }
             Err(e) => return Err(e.into()),
         };
+        let column = |name: String| {
+            rec.names
+                .iter()
+                .position(|n| *n == name)
+                .map(|i| &rec.columns[i])
+        };
         let predicted = io
             .outputs
             .iter()
+            .map(|s| column(format!("{}_hat", s.name)).cloned())
+            .collect();
+        let band = io
+            .outputs
+            .iter()
             .map(|s| {
-                rec.names
-                    .iter()
-                    .position(|n| *n == format!("{}_hat", s.name))
-                    .map(|i| rec.columns[i].clone())
+                let lo = column(format!("{}_lo", s.name))?;
+                let hi = column(format!("{}_hi", s.name))?;
+                Some(lo.iter().zip(hi).map(|(l, h)| 0.5 * (h - l)).collect())
             })
             .collect();
         let label = rec
@@ -105,6 +136,7 @@ impl PlotRecord {
             label,
             io,
             predicted,
+            band,
             columns: rec.names.clone(),
             units: Vec::new(),
         })
@@ -234,6 +266,11 @@ impl PlotRecord {
                     io,
                     predicted: self
                         .predicted
+                        .iter()
+                        .map(|p| p.as_ref().map(|p| p[i..j + 1].to_vec()))
+                        .collect(),
+                    band: self
+                        .band
                         .iter()
                         .map(|p| p.as_ref().map(|p| p[i..j + 1].to_vec()))
                         .collect(),

@@ -2,7 +2,8 @@
 //!
 //! Measured output, model prediction (`<output>_hat`, one-step ahead or free run, whichever the
 //! record holds) and residual `y - y_hat` over time, one pair of stacked panels per output, on a
-//! shared time axis. Without predictions, each input and output gets its own panel. The zoom
+//! shared time axis; a prediction band (`<output>_lo`, `<output>_hi`) is shaded around the model
+//! and around zero under the residual. Without predictions, each input and output gets its own panel. The zoom
 //! window is chosen with [`PlotRecord::window`] (`--from`/`--to`).
 
 use super::axes::{self, legend, legend_line};
@@ -113,9 +114,19 @@ impl Figure for TimeFigure<'_> {
                     q.label_with(&format!("residual {}", q.name))
                 }
             };
+            // the band: (centre, half-width), shaded under the lines
+            let band: Option<(Vec<f64>, &[f64])> = match panel {
+                Panel::Fit { j } => r.predicted[*j].clone().zip(r.band[*j].as_deref()),
+                Panel::Residual { j } => r.band[*j].as_deref().map(|h| (vec![0.0; n], h)),
+                Panel::Signal { .. } => None,
+            };
             let mut yr = (f64::INFINITY, f64::NEG_INFINITY);
             for (_, v, _) in &series {
                 yr = axes::union(yr, axes::padded_range(*v, 0.05));
+            }
+            if let Some((c, h)) = &band {
+                let edges: Vec<f64> = c.iter().zip(*h).flat_map(|(c, h)| [c - h, c + h]).collect();
+                yr = axes::union(yr, axes::padded_range(&edges, 0.05));
             }
             // the time axis is described once, under the bottom panel
             let last = std::ptr::eq(panel, panels.last().unwrap_or(panel));
@@ -131,6 +142,19 @@ impl Figure for TimeFigure<'_> {
             }
             let sigs: Vec<&[f64]> = series.iter().map(|s| s.1).collect();
             let idx = decimate(&sigs, 0..n, self.max_points);
+            if let Some((c, h)) = &band {
+                let mut outline: Vec<(f64, f64)> =
+                    idx.iter().map(|&k| (t[k], c[k] + h[k])).collect();
+                outline.extend(idx.iter().rev().map(|&k| (t[k], c[k] - h[k])));
+                let colour = style::series_colour(1).mix(0.2);
+                chart
+                    .draw_series(std::iter::once(Polygon::new(outline, colour.filled())))
+                    .map_err(render_err)?
+                    .label("prediction band (95 %)")
+                    .legend(move |(x, y)| {
+                        Rectangle::new([(x, y - 4), (x + 16, y + 4)], colour.filled())
+                    });
+            }
             for (name, v, c) in &series {
                 chart
                     .draw_series(axes::path_elements(
@@ -141,7 +165,7 @@ impl Figure for TimeFigure<'_> {
                     .label(name.as_str())
                     .legend(legend_line(*c));
             }
-            if series.len() > 1 || matches!(panel, Panel::Residual { .. }) {
+            if series.len() > 1 || band.is_some() || matches!(panel, Panel::Residual { .. }) {
                 legend(&mut chart, SeriesLabelPosition::UpperRight)?;
             }
         }

@@ -6,6 +6,7 @@
 use super::{Class, IndexEntry, ZooError, ZooIndex};
 use crate::data::{read_csv, IoRecord};
 use crate::narx::arx::fit_arx;
+use crate::narx::band::coverage;
 use crate::narx::NarxConfig;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -31,6 +32,9 @@ pub struct OutputScore {
     /// instead of the measurement: the model's own error, without the noise.
     pub r2_clean: Option<f64>,
     pub arx_r2_clean: Option<f64>,
+    /// Share of the test samples whose measurement lies inside the identifier's 95 % band
+    /// (`None`: no band, or the free run diverged).
+    pub coverage: Option<f64>,
 }
 
 impl OutputScore {
@@ -91,6 +95,10 @@ pub struct ClassSummary {
     pub worse_than_arx: usize,
     /// Outputs within 0.001 of the true plant's R^2 (as good as the noise allows).
     pub near_truth: usize,
+    /// Outputs whose band covers at least 90 % of the test samples, and the mean coverage
+    /// (over outputs with a band).
+    pub covered_090: usize,
+    pub mean_coverage: Option<f64>,
     /// Median of the train - test free-run R^2 gap.
     pub median_gap: Option<f64>,
     pub median_seconds: f64,
@@ -173,6 +181,11 @@ fn score_member(dir: &Path, e: &IndexEntry) -> Result<RecordScore, ZooError> {
                 truth_r2: crate::metrics::r2(y, clean),
                 r2_clean: clean_r2(clean, &fr.values, fr.start, fr.diverged_at),
                 arx_r2_clean: clean_r2(clean, &run.values, run.start, run.diverged_at),
+                coverage: fr
+                    .half_width
+                    .as_ref()
+                    .filter(|_| fr.diverged_at.is_none())
+                    .and_then(|h| coverage(y, &fr.values, h, fr.start)),
             }
         })
         .collect();
@@ -269,6 +282,14 @@ fn summarise(class: Class, records: &[RecordScore]) -> Option<ClassSummary> {
                 _ => false,
             })
             .count(),
+        covered_090: outs
+            .iter()
+            .filter(|o| o.coverage.is_some_and(|c| c >= 0.9))
+            .count(),
+        mean_coverage: {
+            let c: Vec<f64> = outs.iter().filter_map(|o| o.coverage).collect();
+            (!c.is_empty()).then(|| c.iter().sum::<f64>() / c.len() as f64)
+        },
         median_gap: median(gaps),
         median_seconds: median(mine.iter().map(|r| r.seconds).collect()).unwrap_or(0.0),
         total_seconds: mine.iter().map(|r| r.seconds).sum(),
@@ -293,13 +314,13 @@ fn cell(v: Option<f64>) -> String {
 impl ZooScore {
     /// `results.csv`: one row per output of each record.
     pub fn to_csv(&self) -> String {
-        let mut s = String::from("index,class,samples,sampling_period_s,output,r2_test,diverged,r2_train,arx_r2_test,arx_diverged,worse_than_arx,truth_r2_test,r2_clean,arx_r2_clean,seconds\n");
+        let mut s = String::from("index,class,samples,sampling_period_s,output,r2_test,diverged,r2_train,arx_r2_test,arx_diverged,worse_than_arx,truth_r2_test,r2_clean,arx_r2_clean,band_coverage,seconds\n");
         let opt = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
         for r in &self.records {
             for o in &r.outputs {
                 let _ = writeln!(
                     s,
-                    "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                    "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                     r.index,
                     r.class,
                     r.samples,
@@ -314,6 +335,7 @@ impl ZooScore {
                     opt(o.truth_r2),
                     opt(o.r2_clean),
                     opt(o.arx_r2_clean),
+                    opt(o.coverage),
                     r.seconds
                 );
             }
@@ -373,6 +395,18 @@ impl ZooScore {
                 cell(c.arx_clean.median),
                 share(c.arx_clean.at_least_099, c.outputs),
                 share(c.arx_clean.at_least_0999, c.outputs),
+            );
+        }
+        s += "\nPrediction bands (95 %, calibrated on each training record's validation part): the share of test samples whose measurement lies inside.\n\n| class | outputs | mean coverage | outputs covered >= 90 % |\n|---|---|---|---|\n";
+        for c in &self.classes {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} |",
+                c.class,
+                c.outputs,
+                c.mean_coverage
+                    .map_or("-".into(), |v| format!("{:.1} %", 100.0 * v)),
+                share(c.covered_090, c.outputs),
             );
         }
         let total: f64 = self.classes.iter().map(|c| c.total_seconds).sum();

@@ -1,0 +1,166 @@
+//! # Prediction bands
+//!
+//! Every free run of a fitted model carries a band that should hold the measured output with
+//! probability [`BAND_LEVEL`]. It is calibrated by split conformal prediction on the training
+//! record's own validation part (never seen by the gradient steps): the free run there gives
+//! residuals r_t, and with the ensemble's spread s_t (the members' scaled median absolute
+//! deviation; zero for one network) and the validation RMS error e, the normalised scores |r_t| / (s_t + e) give
+//! their `level` quantile q (the ceil((n + 1) level)-th smallest of n). On any record the band
+//! is then prediction +- q (s_t + e): as wide as the validation errors where the members agree,
+//! wider where they part (typically outside the training region).
+//!
+//! The validation part comes after the fitting part in time, so the band carries the model's
+//! drift as well as the noise; its free-run residuals are correlated, so the coverage is a
+//! measured property (see `hystbench zoo score`), not a guarantee.
+//!
+//! ## References
+//! - V. Vovk, A. Gammerman, G. Shafer, *Algorithmic Learning in a Random World*, Springer, 2005.
+//! - J. Lei, M. G'Sell, A. Rinaldo, R. J. Tibshirani, L. Wasserman, "Distribution-free
+//!   predictive inference for regression", JASA 113(523):1094-1111, 2018 (normalised scores).
+
+use serde::{Deserialize, Serialize};
+
+/// The probability the bands are calibrated for.
+pub const BAND_LEVEL: f64 = 0.95;
+
+/// A calibrated band of one output (physical units).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Band {
+    /// The probability it is calibrated for.
+    pub level: f64,
+    /// The quantile q of the normalised validation scores.
+    pub quantile: f64,
+    /// The validation RMS error e (physical units, > 0).
+    pub rms: f64,
+    /// Validation samples it was calibrated on.
+    pub samples: usize,
+}
+
+impl Band {
+    /// Calibrates from validation residuals and the ensemble's spread at the same samples
+    /// (physical units). `None` without residuals, or when they are all zero or not finite.
+    pub fn calibrate(residuals: &[f64], spreads: &[f64], level: f64) -> Option<Band> {
+        let n = residuals.len();
+        if n == 0 || spreads.len() != n || !(0.0..1.0).contains(&level) {
+            return None;
+        }
+        let rms = (residuals.iter().map(|r| r * r).sum::<f64>() / n as f64).sqrt();
+        if !(rms.is_finite() && rms > 0.0 && spreads.iter().all(|s| s.is_finite())) {
+            return None;
+        }
+        let mut scores: Vec<f64> = residuals
+            .iter()
+            .zip(spreads)
+            .map(|(r, s)| r.abs() / (s + rms))
+            .collect();
+        scores.sort_by(f64::total_cmp);
+        let k = (((n + 1) as f64 * level).ceil() as usize).clamp(1, n);
+        Some(Band {
+            level,
+            quantile: scores[k - 1],
+            rms,
+            samples: n,
+        })
+    }
+
+    /// The half-width at a sample where the ensemble's spread is `spread`.
+    pub fn half_width(&self, spread: f64) -> f64 {
+        self.quantile * (spread + self.rms)
+    }
+
+    /// Valid numbers (a loaded file).
+    pub fn check(&self) -> Result<(), String> {
+        let ok = self.level > 0.0
+            && self.level < 1.0
+            && self.quantile.is_finite()
+            && self.quantile >= 0.0
+            && self.rms.is_finite()
+            && self.rms > 0.0;
+        if ok {
+            Ok(())
+        } else {
+            Err(format!(
+                "band: level {} (in (0, 1)), quantile {} (>= 0) and rms {} (> 0) are not valid",
+                self.level, self.quantile, self.rms
+            ))
+        }
+    }
+}
+
+/// Coverage of a band over `from..`: the share of measured samples within prediction +- half
+/// width (`None` over no sample).
+pub fn coverage(measured: &[f64], pred: &[f64], half: &[f64], from: usize) -> Option<f64> {
+    let n = measured.len().min(pred.len()).min(half.len());
+    if from >= n {
+        return None;
+    }
+    let inside = (from..n)
+        .filter(|&k| (measured[k] - pred[k]).abs() <= half[k])
+        .count();
+    Some(inside as f64 / (n - from) as f64)
+}
+
+/// The members' spread at each sample: their median absolute deviation from their median,
+/// times 1.4826 (the standard deviation for normal scatter; one stray member barely moves it).
+/// Zeros for one run.
+pub fn spread(runs: &[&[f64]], len: usize) -> Vec<f64> {
+    let k = runs.len();
+    if k < 2 {
+        return vec![0.0; len];
+    }
+    let median = |v: &mut [f64]| {
+        v.sort_unstable_by(f64::total_cmp);
+        if k % 2 == 1 {
+            v[k / 2]
+        } else {
+            0.5 * (v[k / 2 - 1] + v[k / 2])
+        }
+    };
+    let mut v = vec![0.0; k];
+    (0..len)
+        .map(|t| {
+            for (vj, r) in v.iter_mut().zip(runs) {
+                *vj = r[t];
+            }
+            let m = median(&mut v);
+            for x in v.iter_mut() {
+                *x = (*x - m).abs();
+            }
+            1.4826 * median(&mut v)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gaussian_residuals_give_about_two_rms() {
+        // deterministic normal-looking residuals from a fixed stream
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::Xoshiro256PlusPlus::seed_from_u64(7);
+        let mut unit = || (rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64);
+        let r: Vec<f64> = (0..4000)
+            .map(|_| {
+                let (a, b) = (unit(), unit());
+                (-2.0 * (1.0 - a).ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+            })
+            .collect();
+        let b = Band::calibrate(&r, &vec![0.0; r.len()], 0.95).unwrap();
+        assert!((b.quantile - 1.96).abs() < 0.1, "{b:?}");
+        let half = vec![b.half_width(0.0); r.len()];
+        let c = coverage(&r, &vec![0.0; r.len()], &half, 0).unwrap();
+        assert!((c - 0.95).abs() < 0.01, "{c}");
+    }
+
+    #[test]
+    fn spread_widens_the_band_and_bad_input_gives_none() {
+        let b = Band::calibrate(&[1.0, -1.0, 0.5], &[0.0; 3], 0.9).unwrap();
+        assert!(b.half_width(2.0) > b.half_width(0.0));
+        assert!(Band::calibrate(&[], &[], 0.95).is_none());
+        assert!(Band::calibrate(&[0.0, 0.0], &[0.0, 0.0], 0.95).is_none());
+        assert!(Band::calibrate(&[1.0], &[f64::NAN], 0.95).is_none());
+        assert_eq!(spread(&[&[1.0, 2.0][..], &[3.0, 2.0][..]], 2)[1], 0.0);
+    }
+}
