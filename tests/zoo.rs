@@ -250,7 +250,16 @@ fn a_small_zoo_is_scored_against_the_linear_baseline() {
     assert_eq!(summed, outputs);
     let csv = std::fs::read_to_string(z.join("score/results.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + outputs as usize);
-    assert!(std::fs::read_to_string(z.join("score/report.md"))
-        .unwrap()
-        .contains("| 1dof-"));
+    let report = std::fs::read_to_string(z.join("score/report.md")).unwrap();
+    assert!(report.contains("| 1dof-") && report.contains("(r2.png)"));
+    let png = std::fs::read(z.join("score/r2.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG"), "r2.png is a PNG");
+    // every output with a band reports its coverage
+    for r in v["records"].as_array().unwrap() {
+        for o in r["outputs"].as_array().unwrap() {
+            if let Some(c) = o["coverage"].as_f64() {
+                assert!((0.0..=1.0).contains(&c), "{o}");
+            }
+        }
+    }
 }

@@ -36,7 +36,7 @@ pub struct Args {
 #[derive(Debug, clap::Subcommand)]
 pub enum Sub {
     /// Run the default identifier and a linear ARX baseline on every record (first half trains,
-    /// second half tests); write DIR/score/{results.csv, report.md} and print the report.
+    /// second half tests); write DIR/score/{results.csv, report.md, r2.png} and print the report.
     Score(ScoreArgs),
 }
 
@@ -119,7 +119,8 @@ fn score(a: ScoreArgs) -> anyhow::Result<()> {
     let out = a.dir.join("score");
     std::fs::create_dir_all(&out).with_context(|| format!("cannot make {}", out.display()))?;
     write_atomic(&out.join("results.csv"), result.to_csv().as_bytes(), true)?;
-    let md = result.to_markdown();
+    hystbench::plot::zoo_figure(result.curves(), &out.join("r2.png"), true)?;
+    let md = result.to_markdown() + "\n![free-run test error per class](r2.png)\n";
     write_atomic(&out.join("report.md"), md.as_bytes(), true)?;
     if a.json {
         crate::cli::print(&serde_json::to_string(&result)?);

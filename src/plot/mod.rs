@@ -13,6 +13,7 @@
 //! | spectrum | [`spectrum`] | amplitude spectra of measurement and residual (Welch, Hann window) |
 //! | sweep | [`sweep`] | heat maps of free-run test R^2 over lags x neurons from a sweep's `results.csv` |
 //! | ladder | [`ladder`] | the model-improvement loop's error after each added effect |
+//! | zoo | [`zoo`] | per class of a plant zoo, the distribution of free-run test 1 - R^2 (identifier, ARX, true plant) |
 //!
 //! Each figure is a type implementing [`Figure`]; [`save`] renders it in memory and writes the
 //! file atomically (the extension picks the format). Long records are decimated for drawing
@@ -37,6 +38,7 @@ pub mod style;
 pub mod sweep;
 mod table;
 pub mod time;
+pub mod zoo;
 
 pub use error::PlotError;
 
@@ -53,3 +55,4 @@ pub use residual_loop::{residual_loop_figure, ResidualLoopFigure};
 pub use spectrum::{amplitude_spectrum, spectrum_figure, SpectrumFigure};
 pub use sweep::{read_sweep, sweep_figure, SweepFigure, SweepRow};
 pub use time::{time_figure, TimeFigure};
+pub use zoo::{zoo_figure, ZooClassCurves, ZooFigure};

@@ -312,6 +312,31 @@ fn cell(v: Option<f64>) -> String {
 }
 
 impl ZooScore {
+    /// Per class, the free-run test R^2 of every output for the identifier, the ARX baseline
+    /// and the true plant (for [`crate::plot::zoo_figure`]).
+    pub fn curves(&self) -> Vec<crate::plot::ZooClassCurves> {
+        self.classes
+            .iter()
+            .map(|c| {
+                let outs: Vec<&OutputScore> = self
+                    .records
+                    .iter()
+                    .filter(|r| r.class == c.class)
+                    .flat_map(|r| &r.outputs)
+                    .collect();
+                let of = |f: fn(&OutputScore) -> Option<f64>| outs.iter().map(|o| f(o)).collect();
+                crate::plot::ZooClassCurves {
+                    class: c.class.to_string(),
+                    models: vec![
+                        ("identifier".into(), of(|o| o.r2)),
+                        ("ARX".into(), of(|o| o.arx_r2)),
+                        ("true plant (noise ceiling)".into(), of(|o| o.truth_r2)),
+                    ],
+                }
+            })
+            .collect()
+    }
+
     /// `results.csv`: one row per output of each record.
     pub fn to_csv(&self) -> String {
         let mut s = String::from("index,class,samples,sampling_period_s,output,r2_test,diverged,r2_train,arx_r2_test,arx_diverged,worse_than_arx,truth_r2_test,r2_clean,arx_r2_clean,band_coverage,seconds\n");
