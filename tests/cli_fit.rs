@@ -362,7 +362,10 @@ fn model_files_round_trip_and_damaged_ones_are_refused() {
     let v2 = text.replace("\"version\": 1", "\"version\": 2");
     let e = FittedGreyBox::parse(&out, &v2).unwrap_err().to_string();
     assert!(e.contains("version 2 is not supported"), "{e}");
-    let e = FittedGreyBox::parse(&out, &text[..text.len() / 2])
+    // cut at a line end half-way (a cut inside a number, such as the fit's time, would read
+    // as an invalid number rather than an early end)
+    let cut = text[..text.len() / 2].rfind('\n').unwrap();
+    let e = FittedGreyBox::parse(&out, &text[..cut])
         .unwrap_err()
         .to_string();
     assert!(e.contains("line") && e.contains("EOF while parsing"), "{e}");

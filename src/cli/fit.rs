@@ -34,9 +34,10 @@ pub struct Args {
     /// on the whole record).
     #[arg(long)]
     pub train_fraction: Option<f64>,
-    /// Play operators per Prandtl-Ishlinskii path.
-    #[arg(long, default_value_t = 39)]
-    pub plays: usize,
+    /// Play operators per Prandtl-Ishlinskii path (default: 39, or the most of 19, 9, 5, 3
+    /// that a short record supports at about ten samples per parameter).
+    #[arg(long)]
+    pub plays: Option<usize>,
     /// Overwrite an existing model file.
     #[arg(long)]
     pub force: bool,
@@ -64,10 +65,13 @@ pub fn summary_json(model: &FittedGreyBox) -> Value {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     let mut cfg = GreyBoxConfig::from_effect_list(&a.effects)?;
-    if a.plays == 0 {
-        anyhow::bail!("--plays 0: give at least one play operator");
+    if let Some(plays) = a.plays {
+        if plays == 0 {
+            anyhow::bail!("--plays 0: give at least one play operator");
+        }
+        cfg.options.plays = plays;
+        cfg.options.adapt_plays = false;
     }
-    cfg.options.plays = a.plays;
     if let Some(f) = a.train_fraction {
         cfg.options.train_fraction = f;
     }
@@ -86,6 +90,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     model
         .save(&a.out, a.force)
         .with_context(|| format!("writing {}", a.out.display()))?;
+    let hysteresis = model
+        .effects()
+        .contains(&hystbench::effect::hysteresis::NAME);
+    if hysteresis && model.fit.plays < cfg.options.plays {
+        eprintln!(
+            "note: {} play operators per path instead of {}: the most that {} fitted samples support at about ten samples per parameter (--plays N asks for N)",
+            model.fit.plays, cfg.options.plays, model.fit.train_samples
+        );
+    }
     if !model.fit.converged {
         for o in model.fit.outputs.iter().filter(|o| !o.converged) {
             eprintln!("warning: output `{}`: {}", o.name, o.message);

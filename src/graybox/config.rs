@@ -15,7 +15,14 @@ pub struct FitOptions {
     pub tolerance: f64,
     /// Fraction of the record (from the start) used for fitting; 1 = the whole record.
     pub train_fraction: f64,
+    /// A record too short for `plays` (about ten samples per parameter) is fitted with the most
+    /// of 19, 9, 5 or 3 plays that it supports instead of being refused (a parsimonious model
+    /// for a short record); off: `plays` or an error.
+    pub adapt_plays: bool,
 }
+
+/// The play counts a short record falls back to, most first.
+pub const FEWER_PLAYS: [usize; 4] = [19, 9, 5, 3];
 
 impl Default for FitOptions {
     fn default() -> Self {
@@ -24,6 +31,7 @@ impl Default for FitOptions {
             max_iterations: 100,
             tolerance: 1e-10,
             train_fraction: 1.0,
+            adapt_plays: true,
         }
     }
 }

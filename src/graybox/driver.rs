@@ -1,6 +1,7 @@
 //! The driver: checks a record against a configuration, sets up one problem per output, runs
 //! the initialisation and Levenberg-Marquardt, and scores the fitted plant by simulating it.
 
+use super::config::FEWER_PLAYS;
 use super::fit::{levenberg_marquardt, Chosen, LmResult, OutputProblem, OutputStructure};
 use super::{FitSummary, FittedGreyBox, GreyBoxConfig, GreyBoxError, OutputFit};
 use crate::data::IoRecord;
@@ -194,6 +195,25 @@ impl GreyBoxConfig {
     /// `options.train_fraction` of the record is fitted; scores are on the rest when it is < 1,
     /// else on the whole record.
     pub fn fit(&self, rec: &IoRecord) -> Result<FittedGreyBox, GreyBoxError> {
+        let first = match self.fit_at_plays(rec) {
+            Err(e @ GreyBoxError::TooShort { .. }) if self.options.adapt_plays => e,
+            other => return other,
+        };
+        // a short record: the most plays it supports (the error of the fewest when none)
+        let mut last = first;
+        for plays in FEWER_PLAYS.into_iter().filter(|&p| p < self.options.plays) {
+            let mut c = self.clone();
+            c.options.plays = plays;
+            match c.fit_at_plays(rec) {
+                Err(e @ GreyBoxError::TooShort { .. }) => last = e,
+                other => return other,
+            }
+        }
+        Err(last)
+    }
+
+    /// [`GreyBoxConfig::fit`] with `options.plays` as they are.
+    fn fit_at_plays(&self, rec: &IoRecord) -> Result<FittedGreyBox, GreyBoxError> {
         let start = Instant::now();
         let f = self.options.train_fraction;
         if !(f > 0.0 && f <= 1.0) {
@@ -241,6 +261,7 @@ impl GreyBoxConfig {
                 samples: n,
                 train_samples: n_train,
                 scored_on: String::new(),
+                plays: self.options.plays,
             },
         };
         model.score(rec, n_train, &runs)?;

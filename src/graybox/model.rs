@@ -59,6 +59,10 @@ pub struct FitSummary {
     pub train_samples: usize,
     /// `whole record`, or the held-out samples the scores are on.
     pub scored_on: String,
+    /// Play operators per Prandtl-Ishlinskii path (fewer than asked on a short record; 0 in
+    /// files written before it was kept).
+    #[serde(default)]
+    pub plays: usize,
 }
 
 /// A grey-box model file. Besides the fields below, each effect with variants has its
