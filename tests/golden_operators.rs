@@ -57,6 +57,7 @@ fn prandtl_ishlinskii_matches_reference_to_1e9() {
         thresholds: fv(&q["thresholds"]),
         weights: fv(&q["weights"]),
         initial_state: f(&q["initial_state"]),
+        input_map: None,
         dead_zones: None,
     }
     .check()

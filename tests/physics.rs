@@ -29,6 +29,7 @@ fn piezo_pi() -> Hysteresis {
         thresholds: (1..10).map(|i| 4.0 * i as f64).collect(),
         weights: (1..10).map(|i| 0.12 * (-0.25 * i as f64).exp()).collect(),
         initial_state: 0.0,
+        input_map: None,
         dead_zones: None,
     })
     .check()

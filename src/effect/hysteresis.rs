@@ -14,7 +14,7 @@ use super::fitting::{
 };
 use super::play::{play_bank, play_operator};
 use super::prandtl_ishlinskii::{
-    DeadZoneSpec, PrandtlIshlinskii, PrandtlIshlinskiiOp, PrandtlIshlinskiiSpec,
+    dead_zone, DeadZoneSpec, PrandtlIshlinskii, PrandtlIshlinskiiOp, PrandtlIshlinskiiSpec,
 };
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
 use super::{finite, Effect, EffectError, EffectName, Operator, Slot};
@@ -276,6 +276,7 @@ pub fn draw(ctx: &DrawContext, dice: &mut Dice) -> HysteresisSpec {
                 thresholds,
                 weights,
                 initial_state: 0.0,
+                input_map: None,
                 dead_zones,
             })
         }
@@ -314,20 +315,51 @@ fn bouc_wen_grid() -> Vec<Vec<f64>> {
     g
 }
 
-/// Prandtl-Ishlinskii plays (weights >= 0, sharing the sign of the path's gain) and, for the
-/// default operator on a positive path, one Bouc-Wen column (A >= 0).
+/// Prandtl-Ishlinskii plays (weights >= 0, sharing the sign of the path's gain), for the default
+/// operator the ramps of a static input map (weights of either sign) and, on a positive path,
+/// one Bouc-Wen column (A >= 0). Column order: plays, ramps, Bouc-Wen.
 struct PiTerm<'a> {
     u: &'a [f64],
     thresholds: Vec<f64>,
     sign: f64,
     plays: Vec<Vec<f64>>,
+    /// Knots z_j of the static input map and its ramps S_{z_j}(u).
+    knots: Vec<f64>,
+    ramps: Vec<Vec<f64>>,
     /// The Bouc-Wen column's input range, when there is one.
     bw: Option<f64>,
 }
 
+/// Ramps of the static input map beside `plays` plays: 8 with 39 plays, fewer on the shorter
+/// records that get fewer plays, none with 3 plays or fewer.
+pub fn input_map_ramps(plays: usize) -> usize {
+    match plays {
+        0..=3 => 0,
+        4..=5 => 2,
+        6..=9 => 4,
+        10..=19 => 6,
+        _ => 8,
+    }
+}
+
+/// Knots spread evenly inside the input's range [min u, max u] (never exactly 0, where the
+/// ramp is the input itself, the path's gain column).
+pub fn input_map_knots(u: &[f64], n: usize) -> Vec<f64> {
+    let (lo, hi) = u
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
+        return Vec::new();
+    }
+    (1..=n)
+        .map(|j| lo + (hi - lo) * j as f64 / (n + 1) as f64)
+        .map(|z| if z == 0.0 { 1e-9 * (hi - lo) } else { z })
+        .collect()
+}
+
 impl TermFit for PiTerm<'_> {
     fn n_columns(&self) -> usize {
-        self.plays.len() + usize::from(self.bw.is_some())
+        self.plays.len() + self.ramps.len() + usize::from(self.bw.is_some())
     }
     fn n_params(&self) -> usize {
         if self.bw.is_some() {
@@ -351,13 +383,16 @@ impl TermFit for PiTerm<'_> {
         }
     }
     fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>> {
-        let mut cols: Vec<Column<'s>> = Vec::with_capacity(self.plays.len() + 1);
+        let mut cols: Vec<Column<'s>> = Vec::with_capacity(self.n_columns());
         for z in &self.plays {
             if self.sign > 0.0 {
                 cols.push((Cow::Borrowed(z.as_slice()), true));
             } else {
                 cols.push((Cow::Owned(z.iter().map(|v| -v).collect()), true));
             }
+        }
+        for r in &self.ramps {
+            cols.push((Cow::Borrowed(r.as_slice()), false));
         }
         if let Some(range) = self.bw {
             let (b, g) = bouc_wen_params(th, range);
@@ -372,16 +407,22 @@ impl TermFit for PiTerm<'_> {
     }
     fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec {
         let n = self.thresholds.len();
+        let m = self.knots.len();
+        let input_map = (m > 0).then(|| DeadZoneSpec {
+            thresholds: self.knots.clone(),
+            weights: coef[n..n + m].to_vec(),
+        });
         let spec = PrandtlIshlinskiiSpec {
             linear_weight: gain,
             thresholds: self.thresholds.clone(),
             weights: coef[..n].iter().map(|w| self.sign * w).collect(),
             initial_state: 0.0,
+            input_map,
             dead_zones: None,
         };
         let mut extra_paths: Vec<Box<dyn EffectSpec>> = Vec::new();
         if let Some(range) = self.bw {
-            let a = coef[n];
+            let a = coef[n + m];
             if a > 0.0 {
                 let (b, g) = bouc_wen_params(th, range);
                 extra_paths.push(Box::new(bouc_wen_term_spec(a, b, g, 0.0)));
@@ -528,11 +569,22 @@ impl Effect for HysteresisEffect {
                 let plays = plays_of(u, &thresholds);
                 // a negative path cannot carry a Bouc-Wen term (A > 0 in the plant file)
                 let bw = (v == 0 && setup.sign > 0.0).then(|| max_abs(u));
+                let knots = if v == 0 {
+                    input_map_knots(u, input_map_ramps(setup.plays))
+                } else {
+                    Vec::new()
+                };
+                let ramps = knots
+                    .iter()
+                    .map(|&z| u.iter().map(|&x| dead_zone(x, z)).collect())
+                    .collect();
                 Box::new(PiTerm {
                     u,
                     thresholds,
                     sign: setup.sign,
                     plays,
+                    knots,
+                    ramps,
                     bw,
                 })
             }
@@ -543,7 +595,7 @@ impl Effect for HysteresisEffect {
     }
     fn parameter_count(&self, variant: usize, plays: usize) -> (usize, usize) {
         match variant {
-            0 => (3 + plays, 0),
+            0 => (3 + plays + input_map_ramps(plays), 0),
             1 => (plays, 0),
             _ => (3, 0),
         }
