@@ -134,6 +134,7 @@ fn main() {
                 // as `hystbench sweep`: the grid studies the plain network (no feature selection)
                 c.robust.try_features.clear();
                 c.robust.try_decimation = false;
+                c.robust.try_greybox = false;
                 let m = c.fit(&train).unwrap();
                 m.evaluate(&train, &test).unwrap()[0].r2_fr_test
             })

@@ -37,7 +37,7 @@ pub fn run() -> Result<Found, Box<dyn std::error::Error>> {
         .record
         .split_halves();
     let narx = NarxConfig::new(train.input_names(), train.output_names()).fit(&train)?;
-    let eval = narx.evaluate(&train, &test)?;
+    let eval = narx.evaluate_split(&train, &test)?;
     println!("NARX free-run test R^2: {:?}", eval[0].r2_fr_test);
 
     // 3. fit a grey-box model without creep, 4. diagnose it

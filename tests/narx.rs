@@ -18,11 +18,19 @@ fn config(rec: &IoRecord) -> NarxConfig {
     NarxConfig::new(rec.input_names(), rec.output_names())
 }
 
+/// The default protocol's networks alone (no grey-box base): for the tests of the network's
+/// own machinery (features, ensembles, bands, sampling, divergence).
+fn network_config(rec: &IoRecord) -> NarxConfig {
+    let mut c = config(rec);
+    c.robust.try_greybox = false;
+    c
+}
+
 /// Fit on the first half, free-run R^2 on the second, per output.
 fn free_run_test_r2(cfg: &NarxConfig, rec: &IoRecord) -> Vec<Option<f64>> {
     let (train, test) = rec.split_halves();
     let m = cfg.fit(&train).expect("fit");
-    m.evaluate(&train, &test)
+    m.evaluate_split(&train, &test)
         .expect("evaluate")
         .iter()
         .map(|e| e.r2_fr_test)
@@ -35,7 +43,7 @@ fn fit_and_score(cfg: &NarxConfig, rec: &IoRecord) -> (Vec<Option<f64>>, Option<
     let (train, test) = rec.split_halves();
     let m = cfg.fit(&train).expect("fit");
     let r2 = m
-        .evaluate(&train, &test)
+        .evaluate_split(&train, &test)
         .expect("evaluate")
         .iter()
         .map(|e| e.r2_fr_test)
@@ -78,10 +86,10 @@ fn default_protocol_recovers_prandtl_ishlinskii_by_choosing_play_features() {
 fn hysteresis_features_improve_prandtl_ishlinskii_and_are_recomputed_on_another_record() {
     let rec = seed_1dof(Plant1::PrandtlIshlinskii, 50_000, 1);
     let (train, test) = rec.split_halves();
-    let mut plain = config(&rec);
+    let mut plain = network_config(&rec);
     plain.robust.try_features.clear();
     let plain = free_run_test_r2(&plain, &rec)[0].expect("no divergence");
-    let mut cfg = config(&train);
+    let mut cfg = network_config(&train);
     cfg.robust.try_features.clear();
     let u: Vec<&[f64]> = train.inputs.iter().map(|s| &s.values[..]).collect();
     cfg.features = HysteresisEffect.features(&u, train.ts);
@@ -258,7 +266,7 @@ fn fit_records_on_one_record_is_fit_without_the_selections() {
         values: rec.outputs[0].values.iter().map(|v| 0.5 * v * v).collect(),
     };
     rec.outputs.push(y2);
-    let mut cfg = quick(config(&rec));
+    let mut cfg = quick(network_config(&rec));
     cfg.robust.try_features.clear();
     cfg.robust.try_decimation = false;
     let one = model_bytes(&cfg.fit(&rec).unwrap());
@@ -318,7 +326,7 @@ fn model_file_round_trip_and_refusals() {
 fn a_diverging_free_run_is_reported_with_its_sample_not_scored() {
     let rec = seed_2dof(4);
     let (train, test) = rec.split_halves();
-    let mut cfg = quick(config(&train));
+    let mut cfg = quick(network_config(&train));
     cfg.robust.ensemble = Some(1); // one network (ensembles: see the test below)
     let mut m = cfg.fit(&train).unwrap();
     // make output y1 unstable: a huge weight on y(k-1) in the bypass
@@ -755,7 +763,7 @@ fn acceptance_2dof_over_seeds() {
 fn short_records_get_an_ensemble_that_loads_predicts_the_median_and_reports_divergence() {
     let rec = seed_2dof(2);
     let (train, test) = rec.split_halves();
-    let mut cfg = quick(config(&train));
+    let mut cfg = quick(network_config(&train));
     cfg.robust.restarts = Some(4);
     let fit = |threads, cfg: &NarxConfig| {
         rayon::ThreadPoolBuilder::new()
@@ -877,7 +885,9 @@ fn on_a_linear_plant_the_identifier_is_no_worse_than_arx() {
         .linear_selection_mse
         .expect("a linear candidate was tried");
     assert!(t.selection_mse().is_some_and(|s| s <= linear), "{t:?}");
-    let r2 = m.evaluate(&train, &test).unwrap()[0].r2_fr_test.unwrap();
+    let r2 = m.evaluate_split(&train, &test).unwrap()[0]
+        .r2_fr_test
+        .unwrap();
     let arx = hystbench::narx::arx::fit_arx(&train, m.config.lags).unwrap();
     let run = &arx.free_run(&test)[0];
     let arx_r2 = run.scores(&test.outputs[0].values).unwrap().r2.unwrap();
@@ -897,7 +907,7 @@ fn an_oversampled_record_is_modelled_at_a_coarser_sampling() {
         {"sine": {"amplitude": 12.0, "frequency_hz": 2.3}}]}]}"#;
     let rec = common::record(plant, scenario, 0.02);
     let (train, test) = rec.split_halves();
-    let cfg = config(&train);
+    let cfg = network_config(&train);
     let candidates = cfg.decimation_candidates(&train);
     // 16 would leave fewer than 1,000 samples per phase of the 12,000
     assert_eq!(candidates, vec![4]);
@@ -1002,7 +1012,7 @@ fn prediction_bands_hold_a_test_half_like_the_training_half() {
         "period_s": 1.0}}]}"#;
     let rec = common::record(&plant, scenario, 0.05);
     let (train, test) = rec.split_halves();
-    let m = config(&rec).fit(&train).expect("fit");
+    let m = network_config(&rec).fit(&train).expect("fit");
     let band = m.outputs[0].band.clone().expect("a band");
     assert!(band.quantile > 0.0 && band.rms > 0.0, "{band:?}");
     let p = &m.predict(&test, Mode::FreeRun).unwrap()[0];

@@ -128,7 +128,7 @@ fn identify_records(records: &Path, md: &mut String) -> anyhow::Result<()> {
         let model =
             hystbench::narx::NarxConfig::new(io.input_names(), io.output_names()).fit(&train)?;
         let secs = t.elapsed().as_secs_f64();
-        for ev in model.evaluate(&train, &test)? {
+        for ev in model.evaluate_split(&train, &test)? {
             let fr = ev.r2_fr_test;
             let _ = writeln!(
                 md,

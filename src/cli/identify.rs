@@ -43,6 +43,12 @@ pub struct IdentifyArgs {
     /// and keeps the better free run on the training record's validation part.
     #[arg(long, value_delimiter = ',')]
     pub features: Vec<String>,
+    /// The grey-box base candidate of the default protocol: `auto` fits a grey-box model of
+    /// the effect library (hysteresis, creep, dynamics, coupling: what the record supports) and
+    /// keeps it per output, alone or under a network on its residual, where it validates better
+    /// than the network; `off` fits networks only.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "off"])]
+    pub greybox: String,
     /// Model file to write (JSON).
     #[arg(long)]
     pub out: PathBuf,
@@ -263,6 +269,9 @@ pub fn run(args: IdentifyArgs) -> anyhow::Result<()> {
             cfg.features = feature_specs(&args.features, &train)?;
         }
     }
+    if args.greybox == "off" {
+        cfg.robust.try_greybox = false;
+    }
     let need = cfg.lags.start() + 2;
     if args.test.is_none() && train.len() < need {
         anyhow::bail!(
@@ -284,7 +293,12 @@ fn run_with(
     let model: FittedNarx = cfg
         .fit(&train)
         .context("training failed; nothing written")?;
-    let eval = model.evaluate(&train, &test)?;
+    // the halves of one record: a grey-box base runs on through the training half
+    let eval = if args.test.is_none() {
+        model.evaluate_split(&train, &test)?
+    } else {
+        model.evaluate(&train, &test)?
+    };
     write_atomic(&args.out, model.to_json().as_bytes(), args.force)?;
     let outside = model.outside(&test);
     crate::cli::warn_outside(args.test.as_ref().unwrap_or(&args.data), &outside);
@@ -298,6 +312,12 @@ fn run_with(
             v["decimation"] = serde_json::json!({"chosen": ds.chosen, "tried": ds.tried});
         }
         v["extrapolation"] = serde_json::to_value(&outside)?;
+        if let Some(b) = &model.base {
+            v["greybox"] = serde_json::to_value(b)?;
+            if let Some(o) = v["greybox"].as_object_mut() {
+                o.remove("plant");
+            }
+        }
         if let Some(fs) = &model.feature_selection {
             v["feature_selection"] = serde_json::json!({
                 "tried": fs.tried,
@@ -391,6 +411,9 @@ fn run_with(
                 tried.join(", ")
             );
         }
+        if let Some(b) = &model.base {
+            print_base(b);
+        }
         println!(
             "trained in {:.2} s; model written to {}",
             model.train_seconds,
@@ -398,4 +421,28 @@ fn run_with(
         );
     }
     Ok(())
+}
+
+/// One line per output: which model the grey-box candidate left it with, and the validation
+/// errors that decided.
+fn print_base(b: &hystbench::narx::base::GreyBoxBase) {
+    use hystbench::narx::base::BaseUse;
+    let e = |v: Option<f64>| v.map_or("diverged".into(), |v| format!("{v:.3e}"));
+    for c in &b.outputs {
+        let what = match c.model {
+            BaseUse::Network => "the network",
+            BaseUse::Base => "the grey-box model alone",
+            BaseUse::BaseAndNetwork => "the grey-box model plus a network on its residual",
+        };
+        let residual = c.residual_mse.map_or(String::new(), |v| {
+            format!(", with a network on its residual {v:.3e}")
+        });
+        println!(
+            "{}: {what} (grey-box {}; free-run validation MSE: network {}, grey-box {}{residual})",
+            c.name,
+            b.effects,
+            e(c.network_mse),
+            e(c.base_mse),
+        );
+    }
 }

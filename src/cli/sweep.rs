@@ -149,6 +149,7 @@ fn config(a: &SweepArgs, s: &Setting, inputs: Vec<String>, outputs: Vec<String>)
     // feature selection, no choice of the model's sampling
     c.robust.try_features.clear();
     c.robust.try_decimation = false;
+    c.robust.try_greybox = false;
     c
 }
 

@@ -19,6 +19,9 @@ pub struct FitOptions {
     /// of 19, 9, 5 or 3 plays that it supports instead of being refused (a parsimonious model
     /// for a short record); off: `plays` or an error.
     pub adapt_plays: bool,
+    /// Samples the record must hold per parameter (10: a model that the record determines
+    /// well; a caller that validates the model on held-out samples may ask for fewer).
+    pub samples_per_parameter: usize,
 }
 
 /// The play counts a short record falls back to, most first.
@@ -32,6 +35,7 @@ impl Default for FitOptions {
             tolerance: 1e-10,
             train_fraction: 1.0,
             adapt_plays: true,
+            samples_per_parameter: 10,
         }
     }
 }

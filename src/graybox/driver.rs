@@ -155,14 +155,15 @@ impl GreyBoxConfig {
             .find_map(|c| c.effect.path_inputs(rec.inputs.len(), 0))
             .map_or(1, |p| p.len());
         let params = per_path * paths + 1 + per_output + 6;
-        let needed = (10 * params).max(100);
+        let per = self.options.samples_per_parameter.max(1);
+        let needed = (per * params).max(100);
         if n < needed {
             return Err(GreyBoxError::TooShort {
                 path: rec.path.clone(),
                 samples: n,
                 needed,
                 effects,
-                why: format!("about ten samples per parameter ({params} parameters)"),
+                why: format!("about {per} samples per parameter ({params} parameters)"),
             });
         }
         for s in &rec.outputs {

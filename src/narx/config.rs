@@ -210,6 +210,11 @@ pub struct RobustSettings {
     /// samples per phase) and keep the one with the lowest free-run validation error.
     #[serde(default = "yes")]
     pub try_decimation: bool,
+    /// Try a grey-box base under the networks ([`crate::narx::base`]): a grey-box model of
+    /// the effect library, alone or with a network on its residual, kept per output where it
+    /// validates better than the network.
+    #[serde(default = "yes")]
+    pub try_greybox: bool,
     /// Restarts, the prediction's own networks included, whose free runs' spread widens the
     /// prediction band where they part ([`crate::narx::band`]); 1: a band of constant width
     /// around one network.
@@ -288,6 +293,7 @@ impl Default for RobustSettings {
             ensemble: None,
             combine: Combine::Median,
             try_decimation: true,
+            try_greybox: true,
             band_restarts: band_restarts(),
         }
     }

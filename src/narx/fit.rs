@@ -115,7 +115,8 @@ impl NarxConfig {
         let t0 = std::time::Instant::now();
         let m = self.fit_selecting_features(train)?;
         let m = self.probe_linear(train, m)?;
-        let mut m = self.choose_decimation(train, m)?;
+        let m = self.choose_decimation(train, m)?;
+        let mut m = self.choose_base(train, m)?;
         m.input_region = Some(InputRegion::of(std::slice::from_ref(train)));
         m.train_seconds = t0.elapsed().as_secs_f64();
         Ok(m)
@@ -306,7 +307,7 @@ impl NarxConfig {
 
     /// The fit with the configuration's features as they are (no selection). With a
     /// decimation s > 1 every record is replaced by up to 4 of its phases (evenly spread).
-    fn fit_fixed(&self, records: &[IoRecord]) -> Result<FittedNarx, NarxError> {
+    pub(super) fn fit_fixed(&self, records: &[IoRecord]) -> Result<FittedNarx, NarxError> {
         self.fit_fixed_forcing(records, &[])
     }
 
@@ -400,6 +401,7 @@ impl NarxConfig {
             decimation_selection: None,
             linear_probe: None,
             input_region: None,
+            base: None,
         })
     }
 

@@ -12,6 +12,8 @@
 //!   simulation-error training over windows, free run with divergence detection;
 //! - [`config`]: the unfitted [`NarxConfig`] (protocol `default` or `study`);
 //! - [`model`]: the fitted [`FittedNarx`], prediction, scores and the versioned model file;
+//! - [`base`]: the grey-box base candidate (a grey-box model alone or under a network on its
+//!   residual, chosen per output on the training record's validation part);
 //! - [`synthetic`]: records of known plants from the effect library, for tests and benches.
 //!
 //! ## References
@@ -21,6 +23,7 @@
 
 pub mod arx;
 pub mod band;
+pub mod base;
 pub mod config;
 mod error;
 pub mod fit;

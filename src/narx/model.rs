@@ -119,6 +119,10 @@ pub struct FittedNarx {
     /// before it was kept).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub input_region: Option<super::region::InputRegion>,
+    /// The grey-box base candidate and how each output uses it ([`super::base`]; `None`: not
+    /// tried).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base: Option<super::base::GreyBoxBase>,
 }
 
 /// The linear probe of one output on a short record: the free-run MSE on the held-out tail of
@@ -182,7 +186,9 @@ pub struct OutputPrediction {
     pub diverged_at: Option<usize>,
     /// Ensemble members (0: `network`) whose free run diverged. They are left out of the
     /// combination (listed here, and in the evaluation); when every member diverged, the
-    /// output diverged.
+    /// output diverged. On an output with a grey-box base under its network, a residual
+    /// network that diverged is left out the same way (every member listed) and the grey-box
+    /// alone is the prediction.
     pub diverged_members: Vec<usize>,
     /// Half-width of the prediction band at each sample (physical units; a free run of a model
     /// with a calibrated band, [`super::band`]), else `None`.
@@ -285,7 +291,88 @@ impl FittedNarx {
 
     /// Predict every output of a record. One-step needs the measured outputs; a free run uses
     /// the first measured outputs as its initial condition (zeros when the record has none).
+    /// A grey-box base runs from rest at the record's start.
     pub fn predict(&self, rec: &IoRecord, mode: Mode) -> Result<Vec<OutputPrediction>, NarxError> {
+        self.predict_after(None, rec, mode)
+    }
+
+    /// [`FittedNarx::predict`] on a record that continues `history` (the test half after the
+    /// training half): a grey-box base runs through `history` first, so that its states are
+    /// the plant's at the record's start; the networks start from the record's own first
+    /// samples as always. Without a base it is `predict`.
+    pub fn predict_after(
+        &self,
+        history: Option<&IoRecord>,
+        rec: &IoRecord,
+        mode: Mode,
+    ) -> Result<Vec<OutputPrediction>, NarxError> {
+        let base = match &self.base {
+            Some(b) if b.active() => b,
+            _ => return self.predict_sampled(rec, mode),
+        };
+        if let Some(h) = history {
+            if h.input_names() != rec.input_names() || h.ts != rec.ts {
+                return Err(NarxError::ColumnMismatch {
+                    path: rec.path.clone(),
+                    what: "input (of the record it continues)",
+                    expected: names_str(&h.input_names()),
+                    found: names_str(&rec.input_names()),
+                });
+            }
+        }
+        self.check_record(rec)?;
+        let Some(g) = base.simulate(history, rec)? else {
+            return self.predict_sampled(rec, mode);
+        };
+        // the networks see the residual of the outputs that have a base
+        let mut resid = rec.clone();
+        for s in resid.outputs.iter_mut() {
+            if let Some(o) = self.outputs.iter().position(|m| m.name == s.name) {
+                if base.uses(o) != super::base::BaseUse::Network {
+                    for (v, gv) in s.values.iter_mut().zip(&g[o]) {
+                        *v -= gv;
+                    }
+                }
+            }
+        }
+        let mut preds = self.predict_sampled(&resid, mode)?;
+        for (o, p) in preds.iter_mut().enumerate() {
+            match base.uses(o) {
+                super::base::BaseUse::Network => {}
+                super::base::BaseUse::BaseAndNetwork if p.diverged_at.is_some() => {
+                    // the residual network left its range (a record whose start the base,
+                    // run from rest, does not know): it is left out like a diverged member,
+                    // and the grey-box alone remains, without a band
+                    p.values = g[o].clone();
+                    p.diverged_at = None;
+                    p.diverged_members = (0..=self.outputs[o].ensemble.len()).collect();
+                    p.half_width = None;
+                }
+                super::base::BaseUse::BaseAndNetwork => {
+                    for (v, gv) in p.values.iter_mut().zip(&g[o]) {
+                        *v += gv;
+                    }
+                }
+                super::base::BaseUse::Base => {
+                    p.values = g[o].clone();
+                    p.diverged_at = None;
+                    p.diverged_members.clear();
+                    p.half_width = match (mode, &self.outputs[o].band) {
+                        (Mode::FreeRun, Some(b)) => Some(vec![b.half_width(0.0); g[o].len()]),
+                        _ => None,
+                    };
+                }
+            }
+        }
+        Ok(preds)
+    }
+
+    /// [`FittedNarx::predict`] of the networks alone, at the model's sampling.
+    fn predict_sampled(
+        &self,
+        rec: &IoRecord,
+        mode: Mode,
+    ) -> Result<Vec<OutputPrediction>, NarxError> {
         let s = self.config.decimation;
         if s <= 1 {
             return self.predict_native(rec, mode);
@@ -471,6 +558,26 @@ impl FittedNarx {
                 self.config.outputs.len()
             ));
         }
+        if let Some(b) = &self.base {
+            if b.outputs.len() != self.outputs.len() {
+                return Err(format!(
+                    "grey-box base: {} output choices for {} outputs",
+                    b.outputs.len(),
+                    self.outputs.len()
+                ));
+            }
+            if let Some(p) = b.plant(Path::new("")).map_err(|e| e.to_string())? {
+                if p.inputs != self.config.inputs || p.outputs != self.config.outputs {
+                    return Err(format!(
+                        "grey-box base: its plant has inputs {} and outputs {}, the model {} and {}",
+                        names_str(&p.inputs),
+                        names_str(&p.outputs),
+                        names_str(&self.config.inputs),
+                        names_str(&self.config.outputs)
+                    ));
+                }
+            }
+        }
         let width = self.config.lags.width(self.config.n_signals());
         for (o, name) in self.outputs.iter().zip(&self.config.outputs) {
             if o.regressor.lags != self.config.lags
@@ -559,10 +666,30 @@ impl FittedNarx {
         train: &IoRecord,
         test: &IoRecord,
     ) -> Result<Vec<OutputEvaluation>, NarxError> {
+        self.evaluate_with(train, test, false)
+    }
+
+    /// [`FittedNarx::evaluate`] when the test record continues the training record (the
+    /// halves of one record): a grey-box base runs on through it ([`FittedNarx::predict_after`]).
+    pub fn evaluate_split(
+        &self,
+        train: &IoRecord,
+        test: &IoRecord,
+    ) -> Result<Vec<OutputEvaluation>, NarxError> {
+        self.evaluate_with(train, test, true)
+    }
+
+    fn evaluate_with(
+        &self,
+        train: &IoRecord,
+        test: &IoRecord,
+        continues: bool,
+    ) -> Result<Vec<OutputEvaluation>, NarxError> {
+        let history = continues.then_some(train);
         let osa_tr = self.predict(train, Mode::OneStep)?;
         let fr_tr = self.predict(train, Mode::FreeRun)?;
-        let osa_te = self.predict(test, Mode::OneStep)?;
-        let fr_te = self.predict(test, Mode::FreeRun)?;
+        let osa_te = self.predict_after(history, test, Mode::OneStep)?;
+        let fr_te = self.predict_after(history, test, Mode::FreeRun)?;
         let measured = |rec: &IoRecord, name: &str| -> Vec<f64> {
             rec.outputs
                 .iter()

@@ -155,9 +155,12 @@ fn score_member(dir: &Path, e: &IndexEntry) -> Result<RecordScore, ZooError> {
         .map_err(narx_err)?;
     let seconds = t0.elapsed().as_secs_f64();
     // the two free runs the score needs (what `evaluate` scores, without its one-step runs)
-    let free_run = |rec: &IoRecord| model.predict(rec, crate::narx::Mode::FreeRun);
-    let fr_train = free_run(&train).map_err(narx_err)?;
-    let fr_test = free_run(&test).map_err(narx_err)?;
+    // (the test half continues the training half: a grey-box base runs on through it)
+    let free_run = |h: Option<&IoRecord>, rec: &IoRecord| {
+        model.predict_after(h, rec, crate::narx::Mode::FreeRun)
+    };
+    let fr_train = free_run(None, &train).map_err(narx_err)?;
+    let fr_test = free_run(Some(&train), &test).map_err(narx_err)?;
     let arx = fit_arx(&train, model.config.lags).map_err(narx_err)?;
     let runs = arx.free_run(&test);
     let truth = noiseless(dir, e)?;
