@@ -135,6 +135,44 @@ mod tests {
     }
 }
 
+/// Batches of the error-difference series in [`significantly_lower_error`].
+pub const COMPARISON_BATCHES: usize = 8;
+/// One-sided 95 % quantile of Student's t with `COMPARISON_BATCHES - 1` = 7 degrees of freedom.
+const T_7_95: f64 = 1.895;
+
+/// Whether the errors `a` are significantly smaller than the errors `b` on the same samples:
+/// a one-sided test of equal mean squared error on the loss differences
+/// d_k = a_k^2 - b_k^2 (Diebold and Mariano 1995), with the variance of their mean taken from
+/// [`COMPARISON_BATCHES`] contiguous batch means (free-run errors are strongly correlated in
+/// time, so single samples are not independent), at the 5 % level. Too few samples (fewer
+/// than two per batch) or a non-finite error: not significant.
+///
+/// Model selection uses it to keep the simpler model unless the richer one is clearly better
+/// on held-out samples.
+///
+/// F. X. Diebold, R. S. Mariano, "Comparing predictive accuracy", J. Bus. Econ. Stat.
+/// 13(3):253-263, 1995.
+pub fn significantly_lower_error(a: &[f64], b: &[f64]) -> bool {
+    let n = a.len().min(b.len());
+    let k = COMPARISON_BATCHES;
+    if n < 2 * k {
+        return false;
+    }
+    let d: Vec<f64> = a.iter().zip(b).map(|(x, y)| x * x - y * y).collect();
+    if !d.iter().all(|v| v.is_finite()) {
+        return false;
+    }
+    let means: Vec<f64> = (0..k)
+        .map(|i| mean(&d[i * n / k..(i + 1) * n / k]))
+        .collect();
+    let m = mean(&means);
+    let var = means.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (k - 1) as f64;
+    if var == 0.0 {
+        return m < 0.0;
+    }
+    m / (var / k as f64).sqrt() < -T_7_95
+}
+
 /// Peak-to-peak range of a signal.
 pub fn ptp(x: &[f64]) -> f64 {
     let (lo, hi) = x
@@ -265,5 +303,21 @@ mod loop_tests {
         let y: Vec<f64> = (0..6284).map(|k| (k as f64 * 0.001 - 0.3).sin()).collect();
         assert!(normalised_loop_area(&u, &y) > 0.1);
         assert!(branch_gap(&u, &y, 20) > 0.2);
+    }
+
+    #[test]
+    fn a_clearly_lower_error_is_significant_a_slightly_lower_one_is_not() {
+        let b: Vec<f64> = (0..400).map(|k| (k as f64 * 0.37).sin()).collect();
+        let half: Vec<f64> = b.iter().map(|v| 0.5 * v).collect();
+        assert!(significantly_lower_error(&half, &b));
+        assert!(!significantly_lower_error(&b, &half));
+        // lower in one stretch only, equal elsewhere: not significant
+        let mut once = b.clone();
+        once[..50].iter_mut().for_each(|v| *v *= 0.5);
+        assert!(!significantly_lower_error(&once, &b));
+        assert!(
+            !significantly_lower_error(&half[..10], &b[..10]),
+            "too few samples"
+        );
     }
 }

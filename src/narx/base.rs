@@ -3,19 +3,23 @@
 //! The default protocol's physical candidate. A grey-box model (`crate::graybox`: hysteresis,
 //! creep and dynamics from the effect library, as many of them as the record supports, with
 //! coupling on a record of several inputs) is fitted on the training record's fitting part and
-//! run free over the whole training record; its error on the validation part (the same samples
-//! and units as the network's selection error) decides, per output, what the model is:
+//! run free over the whole training record; its errors on the validation part (the samples the
+//! network's selection scores) meet the network's free-run errors there, per output:
 //!
-//! - [`BaseUse::Network`]: the network alone, as before (the grey-box did not validate better);
-//! - [`BaseUse::Base`]: the grey-box alone;
+//! - [`BaseUse::Network`]: the network alone, as before, when its errors are clearly lower
+//!   (a one-sided test of equal mean squared error over batch means,
+//!   [`crate::metrics::significantly_lower_error`]);
+//! - [`BaseUse::Base`]: otherwise the grey-box alone: the simpler, physical model wins ties,
+//!   since it has tens of parameters where the network has hundreds and it extrapolates as
+//!   physics does (a test half of other amplitudes, other input combinations of a 2-DoF plant);
 //! - [`BaseUse::BaseAndNetwork`]: the grey-box plus a network trained on its residual
-//!   y - g(u) (the same configuration as the network, features and sampling included), kept
-//!   when it validates better than the grey-box alone.
+//!   y - g(u) (the same configuration as the network, features and sampling included), when
+//!   its validation errors are clearly lower than the grey-box's alone.
 //!
-//! A record too short for a validation part (see `RobustSettings::for_record`) compares the
-//! grey-box fitted on all but the last [`super::fit::PROBE_TAIL`] with the linear probe's network
-//! and linear candidate on that tail, refits the grey-box on the whole record when it wins, and
-//! uses it alone (a network on the residual of 250 samples only learns their noise).
+//! A record too short for a validation part (see `RobustSettings::for_record`) fits the
+//! grey-box on all but the last [`super::fit::PROBE_TAIL`] and meets the short-record probe's
+//! network (trained without that tail) there; the grey-box that wins is refitted on the whole
+//! record and used alone (a network on the residual of 250 samples only learns their noise).
 //!
 //! The grey-box runs from rest. When the record predicted continues the training record (the
 //! test half of `identify`), it runs on through the training record first
@@ -29,10 +33,11 @@
 use super::band::{Band, BAND_LEVEL};
 use super::config::{NarxConfig, Protocol};
 use super::fit::PROBE_TAIL;
-use super::model::{FittedNarx, LinearProbe};
+use super::model::{FittedNarx, Mode};
 use super::NarxError;
 use crate::data::IoRecord;
 use crate::graybox::{FittedGreyBox, GreyBoxConfig};
+use crate::metrics::significantly_lower_error;
 use crate::plant::{Plant, PlantSpec};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -55,6 +60,17 @@ pub enum BaseUse {
     Base,
     /// The grey-box model plus the output's network, trained on the grey-box residual.
     BaseAndNetwork,
+}
+
+impl BaseUse {
+    /// The name in files and tables.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            BaseUse::Network => "network",
+            BaseUse::Base => "base",
+            BaseUse::BaseAndNetwork => "base-and-network",
+        }
+    }
 }
 
 /// The choice for one output: the free-run validation MSE of each candidate (standardised
@@ -163,17 +179,39 @@ pub fn fit_base(train: &IoRecord, n_fit: usize) -> Option<FittedGreyBox> {
     })
 }
 
-/// Mean squared error of `g` against `y` over `range`, in units of `std`.
-fn mse(y: &[f64], g: &[f64], range: std::ops::Range<usize>, std: f64) -> Option<f64> {
-    let n = range.len();
-    let s: f64 = range.map(|k| ((y[k] - g[k]) / std).powi(2)).sum();
-    (n > 0 && s.is_finite()).then(|| s / n as f64)
+/// Errors of a prediction `p` of `y` over `range`, in units of `std` (`None`: diverged, short or
+/// not finite).
+fn errors(y: &[f64], p: &[f64], range: std::ops::Range<usize>, std: f64) -> Option<Vec<f64>> {
+    if p.len() < range.end {
+        return None;
+    }
+    let e: Vec<f64> = range.map(|k| (y[k] - p[k]) / std).collect();
+    e.iter().all(|v| v.is_finite()).then_some(e)
 }
 
-/// The lower of two optional errors (`None`: diverged) is `a`'s strictly.
-fn lower(a: Option<f64>, b: Option<f64>) -> bool {
-    match (a, b) {
-        (Some(a), Some(b)) => a < b,
+fn mse(e: &Option<Vec<f64>>) -> Option<f64> {
+    e.as_ref()
+        .filter(|e| !e.is_empty())
+        .map(|e| e.iter().map(|v| v * v).sum::<f64>() / e.len() as f64)
+}
+
+/// The free runs of a model over `rec` (`None` per output where it diverged).
+fn free_runs(model: &FittedNarx, rec: &IoRecord) -> Vec<Option<Vec<f64>>> {
+    match model.predict(rec, Mode::FreeRun) {
+        Ok(p) => p
+            .into_iter()
+            .map(|o| o.diverged_at.is_none().then_some(o.values))
+            .collect(),
+        Err(_) => vec![None; rec.outputs.len()],
+    }
+}
+
+/// Whether the richer candidate's held-out errors `rich` beat the simpler one's `simple`
+/// clearly ([`crate::metrics::significantly_lower_error`]); a simpler candidate that diverged
+/// always loses, a richer one that diverged never wins.
+fn richer_wins(rich: &Option<Vec<f64>>, simple: &Option<Vec<f64>>) -> bool {
+    match (rich, simple) {
+        (Some(r), Some(s)) => significantly_lower_error(r, s),
         (Some(_), None) => true,
         _ => false,
     }
@@ -181,12 +219,15 @@ fn lower(a: Option<f64>, b: Option<f64>) -> bool {
 
 impl NarxConfig {
     /// The grey-box base candidate of the default protocol (module documentation): fitted on
-    /// the part of `train` that the network's selection does not score, kept per output where
-    /// it validates better than the network `m`.
+    /// the part of `train` that the network's selection does not score, and kept per output
+    /// unless the network's free run is clearly better on those held-out samples (the
+    /// grey-box is the simpler, physical model: the network must earn its place). `probe` is
+    /// the short-record probe (trained without the tail), which stands for the network there.
     pub(super) fn choose_base(
         &self,
         train: &IoRecord,
         mut m: FittedNarx,
+        probe: Option<&FittedNarx>,
     ) -> Result<FittedNarx, NarxError> {
         if self.protocol != Protocol::Default || !self.robust.try_greybox {
             return Ok(m);
@@ -199,44 +240,43 @@ impl NarxConfig {
             self.robust.validation_fraction
         };
         let n_fit = n - (n as f64 * held).round() as usize;
-        // the network's error on the same samples: its selection error, or the probe's
-        let network: Vec<Option<f64>> = if short {
-            match &m.linear_probe {
-                Some(p) => p.iter().map(probe_mse).collect(),
-                None => return Ok(m),
-            }
-        } else {
-            m.outputs
-                .iter()
-                .map(|o| o.training.selection_mse())
-                .collect()
+        // the network's free run over the training record: the model's own, or on a short
+        // record the probe's (which did not train on the tail)
+        let reference = match (short, probe) {
+            (false, _) => &m,
+            (true, Some(p)) => p,
+            (true, None) => return Ok(m),
         };
+        let networks = free_runs(reference, train);
         let Some(g) = fit_base(train, n_fit) else {
             return Ok(m);
         };
         let Ok(sim) = g.simulate(train) else {
             return Ok(m);
         };
-        let mut choices: Vec<BaseChoice> = m
-            .outputs
-            .iter()
-            .enumerate()
-            .map(|(o, om)| {
-                let y = &train.outputs[o].values;
-                let base_mse = mse(y, &sim[o], n_fit..n, om.scaling.std);
-                BaseChoice {
-                    name: om.name.clone(),
-                    network_mse: network[o],
-                    base_mse,
-                    residual_mse: None,
-                    model: if lower(base_mse, network[o]) {
-                        BaseUse::Base
-                    } else {
-                        BaseUse::Network
-                    },
-                }
-            })
-            .collect();
+        let mut base_errors = Vec::new();
+        let mut choices: Vec<BaseChoice> = Vec::new();
+        for (o, om) in m.outputs.iter().enumerate() {
+            let y = &train.outputs[o].values;
+            let std = om.scaling.std;
+            let be = errors(y, &sim[o], n_fit..n, std);
+            let ne = networks[o]
+                .as_ref()
+                .and_then(|p| errors(y, p, n_fit..n, std));
+            let network_wins = richer_wins(&ne, &be);
+            choices.push(BaseChoice {
+                name: om.name.clone(),
+                network_mse: mse(&ne),
+                base_mse: mse(&be),
+                residual_mse: None,
+                model: if network_wins || be.is_none() {
+                    BaseUse::Network
+                } else {
+                    BaseUse::Base
+                },
+            });
+            base_errors.push(be);
+        }
         let chosen: Vec<usize> = (0..choices.len())
             .filter(|&o| choices[o].model == BaseUse::Base)
             .collect();
@@ -264,7 +304,13 @@ impl NarxConfig {
                 None => (g, n_fit),
             }
         } else {
-            self.fit_residual_networks(train, &sim, &chosen, &mut choices, &mut m)?;
+            let residual = ResidualFit {
+                sim: &sim,
+                chosen: &chosen,
+                base_errors: &base_errors,
+                n_fit,
+            };
+            self.fit_residual_networks(train, residual, &mut choices, &mut m);
             (g, n_fit)
         };
         m.base = Some(GreyBoxBase {
@@ -278,22 +324,23 @@ impl NarxConfig {
 
     /// On a record with a validation part: a network on the grey-box residual of each chosen
     /// output, with the configuration `m` ended up with (features, sampling) and no further
-    /// selection; it replaces the output's network when it validates better than the grey-box
-    /// alone.
+    /// selection; it replaces the output's network when its validation errors are clearly
+    /// lower than the grey-box's alone.
     fn fit_residual_networks(
         &self,
         train: &IoRecord,
-        sim: &[Vec<f64>],
-        chosen: &[usize],
+        r: ResidualFit,
         choices: &mut [BaseChoice],
         m: &mut FittedNarx,
-    ) -> Result<(), NarxError> {
+    ) {
+        let n = train.len();
         let mut resid = train.clone();
-        resid.outputs = chosen
+        resid.outputs = r
+            .chosen
             .iter()
             .map(|&o| {
                 let mut s = train.outputs[o].clone();
-                for (v, g) in s.values.iter_mut().zip(&sim[o]) {
+                for (v, g) in s.values.iter_mut().zip(&r.sim[o]) {
                     *v -= g;
                 }
                 s
@@ -304,31 +351,32 @@ impl NarxConfig {
         cfg.robust.try_features.clear();
         cfg.robust.try_decimation = false;
         cfg.robust.try_greybox = false;
-        // a residual at the noise level is constant to the network's eye: keep the base alone
-        let Ok(r) = cfg.fit_fixed(std::slice::from_ref(&resid)) else {
-            return Ok(());
+        // (a residual the network cannot be fitted to, e.g. constant, leaves the base alone)
+        let Ok(net) = cfg.fit_fixed(std::slice::from_ref(&resid)) else {
+            return;
         };
-        for (k, &o) in chosen.iter().enumerate() {
-            let ro = &r.outputs[k];
-            let ratio = (ro.scaling.std / m.outputs[o].scaling.std).powi(2);
-            let rm = ro.training.selection_mse().map(|v| v * ratio);
-            choices[o].residual_mse = rm;
-            if lower(rm, choices[o].base_mse) {
+        let runs = free_runs(&net, &resid);
+        for (k, &o) in r.chosen.iter().enumerate() {
+            let std = m.outputs[o].scaling.std;
+            let re = runs[k]
+                .as_ref()
+                .and_then(|p| errors(&resid.outputs[k].values, p, r.n_fit..n, std));
+            choices[o].residual_mse = mse(&re);
+            if richer_wins(&re, &r.base_errors[o]) {
                 choices[o].model = BaseUse::BaseAndNetwork;
-                m.outputs[o] = ro.clone();
+                m.outputs[o] = net.outputs[k].clone();
             }
         }
-        Ok(())
     }
 }
 
-/// The probe's error of the candidate it kept.
-fn probe_mse(p: &LinearProbe) -> Option<f64> {
-    if p.linear {
-        p.linear_mse
-    } else {
-        p.network_mse
-    }
+/// What the residual networks are fitted against: the grey-box run over the training record,
+/// the outputs that chose it, its held-out errors, and where the held-out part starts.
+struct ResidualFit<'a> {
+    sim: &'a [Vec<f64>],
+    chosen: &'a [usize],
+    base_errors: &'a [Option<Vec<f64>>],
+    n_fit: usize,
 }
 
 /// `g`'s model refitted on the whole of `train`.

@@ -114,9 +114,9 @@ impl NarxConfig {
     pub fn fit(&self, train: &IoRecord) -> Result<FittedNarx, NarxError> {
         let t0 = std::time::Instant::now();
         let m = self.fit_selecting_features(train)?;
-        let m = self.probe_linear(train, m)?;
+        let (m, probe) = self.probe_linear(train, m)?;
         let m = self.choose_decimation(train, m)?;
-        let mut m = self.choose_base(train, m)?;
+        let mut m = self.choose_base(train, m, probe.as_ref())?;
         m.input_region = Some(InputRegion::of(std::slice::from_ref(train)));
         m.train_seconds = t0.elapsed().as_secs_f64();
         Ok(m)
@@ -127,14 +127,19 @@ impl NarxConfig {
     /// plain network (up to 4 restarts) and the linear candidate trained on the record but its
     /// last [`PROBE_TAIL`], and run free on that tail. Outputs whose linear
     /// candidate validates at least as well there are refitted linear on the whole record.
-    /// The probe's prediction bands, calibrated on that tail, become the model's.
-    fn probe_linear(&self, train: &IoRecord, m: FittedNarx) -> Result<FittedNarx, NarxError> {
+    /// The probe's prediction bands, calibrated on that tail, become the model's. Returns the
+    /// probe too (the grey-box base candidate meets it on the same tail).
+    fn probe_linear(
+        &self,
+        train: &IoRecord,
+        m: FittedNarx,
+    ) -> Result<(FittedNarx, Option<FittedNarx>), NarxError> {
         let n = train.len();
         if self.protocol != Protocol::Default
             || !self.robust.bypass
             || self.robust.for_record(n).validation_fraction != 0.0
         {
-            return Ok(m);
+            return Ok((m, None));
         }
         let mut probe = self.clone();
         probe.robust.validation_fraction = PROBE_TAIL;
@@ -143,7 +148,7 @@ impl NarxConfig {
         probe.robust.band_restarts = 1;
         probe.robust.try_features.clear();
         let Ok(p) = probe.fit_fixed(std::slice::from_ref(train)) else {
-            return Ok(m);
+            return Ok((m, None));
         };
         let results: Vec<LinearProbe> = p
             .outputs
@@ -162,13 +167,13 @@ impl NarxConfig {
         };
         // the bands: the probe's, calibrated on a tail its fit did not see (the final fit has
         // no held-out part; its own residuals would give bands too narrow)
-        for (o, po) in out.outputs.iter_mut().zip(p.outputs) {
+        for (o, po) in out.outputs.iter_mut().zip(&p.outputs) {
             if po.band.is_some() {
-                o.band = po.band;
+                o.band.clone_from(&po.band);
             }
         }
         out.linear_probe = Some(results);
-        Ok(out)
+        Ok((out, Some(p)))
     }
 
     /// The decimations worth trying on `train`: 4, 16 and 64 where the record's 99 % bandwidth

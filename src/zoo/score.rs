@@ -7,6 +7,7 @@ use super::{Class, IndexEntry, ZooError, ZooIndex};
 use crate::data::{read_csv, IoRecord};
 use crate::narx::arx::fit_arx;
 use crate::narx::band::coverage;
+use crate::narx::base::BaseUse;
 use crate::narx::NarxConfig;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -35,6 +36,9 @@ pub struct OutputScore {
     /// Share of the test samples whose measurement lies inside the identifier's 95 % band
     /// (`None`: no band, or the free run diverged).
     pub coverage: Option<f64>,
+    /// What the identifier made of this output ([`crate::narx::base::BaseUse`]): the network,
+    /// the grey-box model alone, or the grey-box model under a network on its residual.
+    pub model: BaseUse,
 }
 
 impl OutputScore {
@@ -99,6 +103,9 @@ pub struct ClassSummary {
     /// (over outputs with a band).
     pub covered_090: usize,
     pub mean_coverage: Option<f64>,
+    /// Outputs whose model is the grey-box base alone, and the base under a network.
+    pub base_alone: usize,
+    pub base_and_network: usize,
     /// Median of the train - test free-run R^2 gap.
     pub median_gap: Option<f64>,
     pub median_seconds: f64,
@@ -189,6 +196,7 @@ fn score_member(dir: &Path, e: &IndexEntry) -> Result<RecordScore, ZooError> {
                     .as_ref()
                     .filter(|_| fr.diverged_at.is_none())
                     .and_then(|h| coverage(y, &fr.values, h, fr.start)),
+                model: model.base.as_ref().map_or(BaseUse::Network, |b| b.uses(o)),
             }
         })
         .collect();
@@ -293,6 +301,11 @@ fn summarise(class: Class, records: &[RecordScore]) -> Option<ClassSummary> {
             let c: Vec<f64> = outs.iter().filter_map(|o| o.coverage).collect();
             (!c.is_empty()).then(|| c.iter().sum::<f64>() / c.len() as f64)
         },
+        base_alone: outs.iter().filter(|o| o.model == BaseUse::Base).count(),
+        base_and_network: outs
+            .iter()
+            .filter(|o| o.model == BaseUse::BaseAndNetwork)
+            .count(),
         median_gap: median(gaps),
         median_seconds: median(mine.iter().map(|r| r.seconds).collect()).unwrap_or(0.0),
         total_seconds: mine.iter().map(|r| r.seconds).sum(),
@@ -342,13 +355,13 @@ impl ZooScore {
 
     /// `results.csv`: one row per output of each record.
     pub fn to_csv(&self) -> String {
-        let mut s = String::from("index,class,samples,sampling_period_s,output,r2_test,diverged,r2_train,arx_r2_test,arx_diverged,worse_than_arx,truth_r2_test,r2_clean,arx_r2_clean,band_coverage,seconds\n");
+        let mut s = String::from("index,class,samples,sampling_period_s,output,r2_test,diverged,r2_train,arx_r2_test,arx_diverged,worse_than_arx,truth_r2_test,r2_clean,arx_r2_clean,band_coverage,model,seconds\n");
         let opt = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
         for r in &self.records {
             for o in &r.outputs {
                 let _ = writeln!(
                     s,
-                    "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                    "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                     r.index,
                     r.class,
                     r.samples,
@@ -364,6 +377,7 @@ impl ZooScore {
                     opt(o.r2_clean),
                     opt(o.arx_r2_clean),
                     opt(o.coverage),
+                    o.model.as_str(),
                     r.seconds
                 );
             }
@@ -435,6 +449,18 @@ impl ZooScore {
                 c.mean_coverage
                     .map_or("-".into(), |v| format!("{:.1} %", 100.0 * v)),
                 share(c.covered_090, c.outputs),
+            );
+        }
+        s += "\nWhat the identifier chose per output (on the training record's validation part): the network, the grey-box model alone, or the grey-box model under a network on its residual.\n\n| class | outputs | network | grey-box | grey-box + network |\n|---|---|---|---|---|\n";
+        for c in &self.classes {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} |",
+                c.class,
+                c.outputs,
+                share(c.outputs - c.base_alone - c.base_and_network, c.outputs),
+                share(c.base_alone, c.outputs),
+                share(c.base_and_network, c.outputs),
             );
         }
         let total: f64 = self.classes.iter().map(|c| c.total_seconds).sum();
