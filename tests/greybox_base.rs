@@ -1,0 +1,128 @@
+//! The default identifier's grey-box base (`narx::base`): chosen per output on the training
+//! record alone, kept in the model file, run through the training half on the test half.
+
+mod common;
+
+use hystbench::data::IoRecord;
+use hystbench::narx::base::BaseUse;
+use hystbench::narx::{FittedNarx, Mode, NarxConfig};
+
+/// The issue's failing kind of record: the 2-DoF cantilever (Bouc-Wen paths, kHz modes), 500
+/// samples at 0.2 ms, amplitude-modulated sines (a carrier plus two side bands each), so that
+/// the test half meets amplitude pairs (u1, u2) the training half never visited.
+fn am_2dof() -> IoRecord {
+    let plant = std::fs::read_to_string(common::root().join("plants/piezo_2dof.json")).unwrap();
+    let am = |a: f64, f: f64, fm: f64| {
+        format!(
+            r#"{{"sum": [{{"sine": {{"amplitude": {a}, "frequency_hz": {f}}}}},
+            {{"sine": {{"amplitude": {q}, "frequency_hz": {lo}, "phase_rad": 1.5707963267948966}}}},
+            {{"sine": {{"amplitude": {q}, "frequency_hz": {hi}, "phase_rad": -1.5707963267948966}}}}]}}"#,
+            q = a / 4.0,
+            lo = f - fm,
+            hi = f + fm
+        )
+    };
+    let scenario = format!(
+        r#"{{"name": "am", "sampling_period_s": 0.0002, "samples": 500, "noise_std": 0.01,
+        "inputs": [{}, {}]}}"#,
+        am(30.0, 30.0, 7.0),
+        am(30.0, 46.0, 4.5)
+    );
+    common::record(&plant, &scenario, 0.01)
+}
+
+fn test_r2(m: &FittedNarx, train: &IoRecord, test: &IoRecord) -> Vec<f64> {
+    m.evaluate_split(train, test)
+        .unwrap()
+        .iter()
+        .map(|e| e.r2_fr_test.unwrap_or(f64::NEG_INFINITY))
+        .collect()
+}
+
+#[test]
+fn a_2dof_record_with_new_input_combinations_in_its_test_half_is_identified() {
+    let rec = am_2dof();
+    let (train, test) = rec.split_halves();
+    let cfg = NarxConfig::new(train.input_names(), train.output_names());
+    let m = cfg.fit(&train).unwrap();
+    let base = m.base.as_ref().expect("the grey-box base was tried");
+    let r2 = test_r2(&m, &train, &test);
+    let mut networks = cfg.clone();
+    networks.robust.try_greybox = false;
+    let n = networks.fit(&train).unwrap();
+    let r2_networks = test_r2(&n, &train, &test);
+    eprintln!(
+        "default {r2:?} ({:?}); networks alone {r2_networks:?}",
+        base.outputs.iter().map(|c| c.model).collect::<Vec<_>>()
+    );
+    assert!(base.active(), "{base:?}");
+    for (o, v) in r2.iter().enumerate() {
+        assert!(*v >= 0.99, "output {o}: free-run test R^2 {v}");
+    }
+    // the model file keeps the base, and the loaded model predicts the same
+    let back = FittedNarx::from_json(std::path::Path::new("m.json"), &m.to_json()).unwrap();
+    assert_eq!(back.base, m.base);
+    let p = m.predict_after(Some(&train), &test, Mode::FreeRun).unwrap();
+    let q = back
+        .predict_after(Some(&train), &test, Mode::FreeRun)
+        .unwrap();
+    assert_eq!(p, q);
+    // an output on the base alone carries the base's band
+    for (o, pr) in p.iter().enumerate() {
+        if base.uses(o) == BaseUse::Base {
+            let h = pr.half_width.as_ref().expect("a band");
+            assert!(h.iter().all(|v| v.is_finite() && *v > 0.0));
+        }
+    }
+    // a damaged base is refused with its name
+    let mut v: serde_json::Value = serde_json::from_str(&m.to_json()).unwrap();
+    v["model"]["base"]["plant"]["outputs"][0]["dynamics"] =
+        serde_json::json!({"natural_frequency_hz": -1.0, "damping_ratio": 0.1});
+    let e = FittedNarx::from_json(std::path::Path::new("m.json"), &v.to_string())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("grey-box base"), "{e}");
+}
+
+/// `identify` reports the choice (`greybox` in `--json`, a line per output in text) and
+/// `--greybox off` fits networks only.
+#[test]
+fn identify_reports_the_grey_box_choice_and_can_leave_it_out() {
+    let t = tempfile::tempdir().unwrap();
+    let rec = am_2dof();
+    let data = t.path().join("am.csv");
+    let (names, cols) = rec.to_columns();
+    hystbench::data::write_csv_atomic(&data, &names, &cols, false).unwrap();
+    let out = t.path().join("m.json");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "identify",
+            "--data",
+            common::s(&data),
+            "--out",
+            common::s(&out),
+            "--force",
+        ];
+        args.extend_from_slice(extra);
+        common::hystbench(&args)
+    };
+    let o = run(&["--json"]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let g = &v["greybox"];
+    assert!(g["effects"].as_str().unwrap().contains("coupling"), "{v}");
+    assert_eq!(g["outputs"].as_array().unwrap().len(), 2);
+    assert!(
+        g.get("plant").is_none(),
+        "the plant stays in the model file"
+    );
+    let o = run(&[]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("free-run validation MSE: network"), "{text}");
+    let o = run(&["--greybox", "off", "--json"]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v.get("greybox").is_none(), "{v}");
+    let m = FittedNarx::load(&out).unwrap();
+    assert!(m.base.is_none());
+}
