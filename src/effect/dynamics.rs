@@ -284,8 +284,10 @@ fn prepared(d: &Dynamics, ts: f64) -> Prepared {
     }
 }
 
-/// The grey-box filter: natural frequency in (fs / 1000, 0.49 fs) and damping in
-/// (0.002, 5), both on log scales; started from the best local minima of a grid.
+/// The grey-box filter: natural frequency in (fs / min(1000, N), 0.49 fs), N the fitted
+/// samples (a mode whose period is longer than the record cannot be told from a drift: on a
+/// short record it fits the noise and extrapolates wildly), and damping in (0.002, 5), both on
+/// log scales; started from the best local minima of a grid.
 struct DynamicsFilter {
     ts: f64,
     f_bounds: (f64, f64),
@@ -468,7 +470,7 @@ impl Effect for DynamicsEffect {
         let fs = 1.0 / setup.ts;
         Some(Box::new(DynamicsFilter {
             ts: setup.ts,
-            f_bounds: (fs / 1000.0, 0.49 * fs),
+            f_bounds: (fs / setup.samples.clamp(1, 1000) as f64, 0.49 * fs),
             z_bounds: (2e-3, 5.0),
         }))
     }

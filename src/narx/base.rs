@@ -162,6 +162,11 @@ impl GreyBoxBase {
 /// both paths of each output from 187 samples).
 pub const BASE_SAMPLES_PER_PARAMETER: usize = 5;
 
+/// Play operators per path of the base's hysteresis (fewer on records too short for them):
+/// half the grey-box fit's default, for half its time; on the development zoo the held-out
+/// error moved by less than the seeds move it.
+pub const BASE_PLAYS: usize = 19;
+
 /// The grey-box model of the first of [`BASE_EFFECTS`] that `train` supports, fitted on its
 /// first `n_fit` samples and scored (free run from rest) on the rest; `None` when none fits.
 pub fn fit_base(train: &IoRecord, n_fit: usize) -> Option<FittedGreyBox> {
@@ -175,6 +180,7 @@ pub fn fit_base(train: &IoRecord, n_fit: usize) -> Option<FittedGreyBox> {
         let mut cfg = GreyBoxConfig::from_effect_list(&format!("{list}{coupling}")).ok()?;
         cfg.options.train_fraction = n_fit as f64 / n as f64;
         cfg.options.samples_per_parameter = BASE_SAMPLES_PER_PARAMETER;
+        cfg.options.plays = BASE_PLAYS;
         cfg.fit(train).ok()
     })
 }
@@ -290,11 +296,17 @@ impl NarxConfig {
             });
             return Ok(m);
         }
-        // the band of the grey-box alone: its held-out residuals (it has one member)
+        // the band of the grey-box alone: its held-out residuals, normalised by its
+        // disagreement with the network (wider where the two part, as outside the training
+        // region; `Band` with the spread |g - network|)
         for &o in &chosen {
             let y = &train.outputs[o].values;
             let r: Vec<f64> = (n_fit..n).map(|k| y[k] - sim[o][k]).collect();
-            m.outputs[o].band = Band::calibrate(&r, &vec![0.0; r.len()], BAND_LEVEL);
+            let spread: Vec<f64> = match &networks[o] {
+                Some(a) if a.len() == n => (n_fit..n).map(|k| (sim[o][k] - a[k]).abs()).collect(),
+                _ => vec![0.0; r.len()],
+            };
+            m.outputs[o].band = Band::calibrate(&r, &spread, BAND_LEVEL);
             m.outputs[o].band_members.clear();
         }
         let (g, fitted_samples) = if short {
@@ -384,5 +396,6 @@ fn fit_base_like(g: &FittedGreyBox, train: &IoRecord) -> Option<FittedGreyBox> {
     let mut cfg = g.config.clone();
     cfg.options.train_fraction = 1.0;
     cfg.options.samples_per_parameter = BASE_SAMPLES_PER_PARAMETER;
+    cfg.options.plays = BASE_PLAYS;
     cfg.fit(train).ok()
 }

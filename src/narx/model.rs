@@ -328,7 +328,7 @@ impl FittedNarx {
         let mut resid = rec.clone();
         for s in resid.outputs.iter_mut() {
             if let Some(o) = self.outputs.iter().position(|m| m.name == s.name) {
-                if base.uses(o) != super::base::BaseUse::Network {
+                if base.uses(o) == super::base::BaseUse::BaseAndNetwork {
                     for (v, gv) in s.values.iter_mut().zip(&g[o]) {
                         *v -= gv;
                     }
@@ -354,11 +354,24 @@ impl FittedNarx {
                     }
                 }
                 super::base::BaseUse::Base => {
-                    p.values = g[o].clone();
+                    // the output's network ran on the measured output: its free run is the
+                    // second opinion whose disagreement with the base widens the band
+                    let net = std::mem::replace(&mut p.values, g[o].clone());
+                    let net = if p.diverged_at.is_some() {
+                        &[][..]
+                    } else {
+                        &net[..]
+                    };
                     p.diverged_at = None;
                     p.diverged_members.clear();
                     p.half_width = match (mode, &self.outputs[o].band) {
-                        (Mode::FreeRun, Some(b)) => Some(vec![b.half_width(0.0); g[o].len()]),
+                        (Mode::FreeRun, Some(b)) => Some(
+                            (0..g[o].len())
+                                .map(|k| {
+                                    b.half_width(net.get(k).map_or(0.0, |a| (g[o][k] - a).abs()))
+                                })
+                                .collect(),
+                        ),
                         _ => None,
                     };
                 }
