@@ -167,10 +167,6 @@ impl Operator for CreepOp {
         self.z.fill(0.0);
     }
 
-    fn settle(&mut self, w: f64) {
-        self.z.fill(w);
-    }
-
     #[inline]
     fn step(&mut self, w: f64) -> f64 {
         let mut out = w;

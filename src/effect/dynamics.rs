@@ -154,13 +154,6 @@ impl Operator for DynamicsOp {
         self.x = Vector2::zeros();
     }
 
-    /// x = (I - Phi)^-1 Gamma w, the fixed point of the update (at rest when it is singular).
-    fn settle(&mut self, w: f64) {
-        self.x = (Matrix2::identity() - self.phi)
-            .try_inverse()
-            .map_or_else(Vector2::zeros, |m| m * self.gamma * w);
-    }
-
     #[inline]
     fn step(&mut self, w: f64) -> f64 {
         let y = self.x[0];

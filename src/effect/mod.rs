@@ -69,14 +69,6 @@ pub trait Operator {
     fn apply(&mut self, x: &[f64]) -> Vec<f64> {
         x.iter().map(|&v| self.step(v)).collect()
     }
-    /// The state the operator would reach under the input `x` held for ever: a linear filter
-    /// (creep, dynamics) settles there; an operator with memory of the input's path
-    /// (hysteresis) keeps its initial state, which the first sample then moves (the default:
-    /// [`Operator::reset`]). A model that starts on a record caught mid-motion starts from
-    /// this equilibrium instead of from rest.
-    fn settle(&mut self, _x: f64) {
-        self.reset();
-    }
 }
 
 /// Check that a parameter is finite; the error names it.

@@ -212,15 +212,6 @@ impl FittedGreyBox {
     /// Free-run simulation of the model's outputs on the record's inputs (picked by name),
     /// from rest, at the record's sampling period.
     pub fn simulate(&self, rec: &IoRecord) -> Result<Vec<Vec<f64>>, GreyBoxError> {
-        self.simulate_from(rec, crate::plant::Start::Rest)
-    }
-
-    /// [`FittedGreyBox::simulate`] from a chosen start (`Settled`: a record caught mid-motion).
-    pub fn simulate_from(
-        &self,
-        rec: &IoRecord,
-        start: crate::plant::Start,
-    ) -> Result<Vec<Vec<f64>>, GreyBoxError> {
         let mut refs = Vec::new();
         for name in &self.plant.inputs {
             let s = rec
@@ -236,7 +227,7 @@ impl FittedGreyBox {
                 })?;
             refs.push(s.values.as_slice());
         }
-        Ok(self.plant.simulate_from(&refs, rec.ts, start)?)
+        Ok(self.plant.simulate(&refs, rec.ts)?)
     }
 
     /// Scores of the free-run simulation against the record's outputs (by name) on `range`.

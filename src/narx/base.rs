@@ -73,8 +73,9 @@ impl BaseUse {
     }
 }
 
-/// The choice for one output: the free-run validation MSE of each candidate (standardised
-/// units of the output, the network's selection error; `None`: not tried, or diverged).
+/// The choice for one output: each candidate's free-run MSE on the held-out samples (the
+/// validation part, or the short-record probe's tail) in the output's standardised units
+/// (`None`: not tried, or diverged).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BaseChoice {

@@ -16,15 +16,13 @@ fn effect_err(plant: &Plant, field: String, source: EffectError) -> PlantError {
 
 impl OutputChain {
     /// Noise-free response of this output to the plant's inputs (`o` is its index, for errors).
-    /// Each operator runs over the whole signal in turn: paths, sum, creep, dynamics; the
-    /// filters start at rest or, with [`Start::Settled`], at their first input's equilibrium.
+    /// Each operator runs over the whole signal in turn: paths, sum, creep, dynamics.
     pub fn simulate(
         &self,
         plant: &Plant,
         o: usize,
         inputs: &[&[f64]],
         ts: f64,
-        start: Start,
     ) -> Result<Vec<f64>, PlantError> {
         let n = inputs[0].len();
         let mut paths = Vec::with_capacity(self.paths.len());
@@ -65,7 +63,6 @@ impl OutputChain {
                 None => vec![0.0; n],
             };
             for f in filters.iter_mut() {
-                start.prepare(f.as_mut(), &v);
                 v = f.apply(&v);
             }
             for (a, b) in w.iter_mut().zip(&v) {
@@ -73,7 +70,6 @@ impl OutputChain {
             }
         }
         for f in filters.iter_mut() {
-            start.prepare(f.as_mut(), &w);
             w = f.apply(&w);
         }
         let out: Vec<f64> = w.into_iter().map(|v| v + self.offset).collect();
@@ -88,39 +84,10 @@ impl OutputChain {
     }
 }
 
-/// Where a simulation starts.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Start {
-    /// Every state at rest (a plant switched on at the first sample).
-    Rest,
-    /// The linear filters (creep, dynamics) at the equilibrium of their first input, as if
-    /// it had been held for ever; hysteresis from its initial state. A model run on a record
-    /// caught mid-motion starts here rather than ringing up from zero.
-    Settled,
-}
-
-impl Start {
-    fn prepare(self, f: &mut dyn crate::effect::Operator, x: &[f64]) {
-        if let (Start::Settled, Some(&x0)) = (self, x.first()) {
-            f.settle(x0);
-        }
-    }
-}
-
 impl Plant {
     /// Noise-free outputs for the given input signals (one per plant input, equal lengths),
     /// sampled every `ts` seconds, from rest.
     pub fn simulate(&self, inputs: &[&[f64]], ts: f64) -> Result<Vec<Vec<f64>>, PlantError> {
-        self.simulate_from(inputs, ts, Start::Rest)
-    }
-
-    /// [`Plant::simulate`] from a chosen start (an ODE plant always starts at rest).
-    pub fn simulate_from(
-        &self,
-        inputs: &[&[f64]],
-        ts: f64,
-        start: Start,
-    ) -> Result<Vec<Vec<f64>>, PlantError> {
         if inputs.len() != self.inputs.len() {
             return Err(PlantError::InputCount {
                 expected: self.inputs.len(),
@@ -132,7 +99,7 @@ impl Plant {
             PlantKind::Chain(chains) => chains
                 .iter()
                 .enumerate()
-                .map(|(o, c)| c.simulate(self, o, inputs, ts, start))
+                .map(|(o, c)| c.simulate(self, o, inputs, ts))
                 .collect(),
             PlantKind::Ode(OdePlant::BoucWenBenchmark(p)) => Ok(vec![p
                 .simulate(inputs[0], ts, false)

@@ -18,7 +18,6 @@ mod error;
 pub mod ode;
 mod spec;
 
-pub use chain::Start;
 pub use error::PlantError;
 pub use spec::{
     EffectSpecs, OdePlant, OdeSpec, OutputChain, OutputSpec, PathParams, PathSpec, Plant,
