@@ -107,45 +107,17 @@ impl PrandtlIshlinskiiSpec {
         for (i, &w) in self.weights.iter().enumerate() {
             finite(&format!("weights[{i}]"), w)?;
         }
-        let input_map = match &self.input_map {
-            None => None,
-            Some(m) => {
-                increasing("input_map.thresholds", &m.thresholds, false)?;
-                if m.weights.len() != m.thresholds.len() {
-                    return Err(EffectError::Shape {
-                        field: "input_map.weights".into(),
-                        rule: format!(
-                            "has {} entries but `input_map.thresholds` has {}",
-                            m.weights.len(),
-                            m.thresholds.len()
-                        ),
-                    });
-                }
-                for (i, &w) in m.weights.iter().enumerate() {
-                    finite(&format!("input_map.weights[{i}]"), w)?;
-                }
-                Some((m.thresholds.clone(), m.weights.clone()))
-            }
-        };
+        let input_map = self
+            .input_map
+            .as_ref()
+            .map(|m| m.check("input_map"))
+            .transpose()?;
         let dead_zones = match &self.dead_zones {
             None => None,
             Some(dz) => {
-                increasing("dead_zones.thresholds", &dz.thresholds, false)?;
-                if dz.weights.len() != dz.thresholds.len() {
-                    return Err(EffectError::Shape {
-                        field: "dead_zones.weights".into(),
-                        rule: format!(
-                            "has {} entries but `dead_zones.thresholds` has {}",
-                            dz.weights.len(),
-                            dz.thresholds.len()
-                        ),
-                    });
-                }
-                for (i, &w) in dz.weights.iter().enumerate() {
-                    finite(&format!("dead_zones.weights[{i}]"), w)?;
-                }
-                check_monotone_dead_zones(&dz.thresholds, &dz.weights)?;
-                Some((dz.thresholds.clone(), dz.weights.clone()))
+                let (d, c) = dz.check("dead_zones")?;
+                check_monotone_dead_zones(&d, &c)?;
+                Some((d, c))
             }
         };
         Ok(PrandtlIshlinskii {
@@ -156,6 +128,27 @@ impl PrandtlIshlinskiiSpec {
             input_map,
             dead_zones,
         })
+    }
+}
+
+impl DeadZoneSpec {
+    /// Thresholds strictly increasing, one finite weight each; `field` names it in errors.
+    fn check(&self, field: &str) -> Result<(Vec<f64>, Vec<f64>), EffectError> {
+        increasing(&format!("{field}.thresholds"), &self.thresholds, false)?;
+        if self.weights.len() != self.thresholds.len() {
+            return Err(EffectError::Shape {
+                field: format!("{field}.weights"),
+                rule: format!(
+                    "has {} entries but `{field}.thresholds` has {}",
+                    self.weights.len(),
+                    self.thresholds.len()
+                ),
+            });
+        }
+        for (i, &w) in self.weights.iter().enumerate() {
+            finite(&format!("{field}.weights[{i}]"), w)?;
+        }
+        Ok((self.thresholds.clone(), self.weights.clone()))
     }
 }
 
