@@ -440,7 +440,7 @@ fn print_base(b: &hystbench::narx::base::GreyBoxBase) {
         println!(
             "{}: {what} (grey-box {}; free-run validation MSE: network {}, grey-box {}{residual})",
             c.name,
-            b.effects,
+            c.effects,
             e(c.network_mse),
             e(c.base_mse),
         );

@@ -42,11 +42,23 @@ use crate::plant::{Plant, PlantSpec};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// The effect lists tried in turn; the first one the record supports is fitted (`coupling` is
-/// added on a record of several inputs).
+/// The effect lists tried in turn on a record with a validation part; the first one the record
+/// supports is fitted (`coupling` is added on a record of several inputs).
 pub const BASE_EFFECTS: [&str; 3] = [
     "hysteresis,creep,dynamics",
     "hysteresis,dynamics",
+    "dynamics",
+];
+
+/// The effect lists a short record's base is chosen from, simplest first: each one the record
+/// supports is fitted (they take milliseconds there) and, per output, a richer one replaces
+/// a simpler one only when its held-out errors are clearly lower. On 250 samples a mode
+/// fitted to a quasi-static plant, or to its creep, extrapolates badly; the static model
+/// does not.
+pub const SHORT_BASE_EFFECTS: [&str; 4] = [
+    "hysteresis",
+    "hysteresis,dynamics",
+    "hysteresis,creep,dynamics",
     "dynamics",
 ];
 
@@ -80,6 +92,9 @@ impl BaseUse {
 #[serde(deny_unknown_fields)]
 pub struct BaseChoice {
     pub name: String,
+    /// The effects of the grey-box candidate this output chose.
+    #[serde(default)]
+    pub effects: String,
     pub network_mse: Option<f64>,
     pub base_mse: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -91,7 +106,7 @@ pub struct BaseChoice {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GreyBoxBase {
-    /// The grey-box model's effects (`hystbench fit --effects`).
+    /// The grey-box candidates' effects (`hystbench fit --effects`), `; ` between candidates.
     pub effects: String,
     /// Samples of the training record it was fitted on.
     pub fitted_samples: usize,
@@ -168,22 +183,50 @@ pub const BASE_SAMPLES_PER_PARAMETER: usize = 5;
 /// error moved by less than the seeds move it.
 pub const BASE_PLAYS: usize = 19;
 
-/// The grey-box model of the first of [`BASE_EFFECTS`] that `train` supports, fitted on its
-/// first `n_fit` samples and scored (free run from rest) on the rest; `None` when none fits.
-pub fn fit_base(train: &IoRecord, n_fit: usize) -> Option<FittedGreyBox> {
+/// The grey-box model with these effects (`coupling` added on several inputs), fitted on the
+/// first `n_fit` samples of `train` (all of them when `n_fit` is its length).
+fn fit_list(train: &IoRecord, list: &str, n_fit: usize) -> Option<FittedGreyBox> {
     let coupling = if train.inputs.len() > 1 {
         ",coupling"
     } else {
         ""
     };
-    let n = train.len();
-    BASE_EFFECTS.iter().find_map(|list| {
-        let mut cfg = GreyBoxConfig::from_effect_list(&format!("{list}{coupling}")).ok()?;
-        cfg.options.train_fraction = n_fit as f64 / n as f64;
-        cfg.options.samples_per_parameter = BASE_SAMPLES_PER_PARAMETER;
-        cfg.options.plays = BASE_PLAYS;
-        cfg.fit(train).ok()
-    })
+    let mut cfg = GreyBoxConfig::from_effect_list(&format!("{list}{coupling}")).ok()?;
+    cfg.options.train_fraction = n_fit as f64 / train.len() as f64;
+    cfg.options.samples_per_parameter = BASE_SAMPLES_PER_PARAMETER;
+    cfg.options.plays = BASE_PLAYS;
+    cfg.fit(train).ok()
+}
+
+/// A fitted candidate base: its effects, the model and its free run over the training record.
+struct Candidate {
+    list: &'static str,
+    model: FittedGreyBox,
+    sim: Vec<Vec<f64>>,
+}
+
+/// The candidate bases of `train` fitted on its first `n_fit` samples: on a short record every
+/// list of [`SHORT_BASE_EFFECTS`] it supports (`dynamics` only when no list with hysteresis
+/// fits), else the first of [`BASE_EFFECTS`].
+fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
+    let fit = |list: &'static str| {
+        let model = fit_list(train, list, n_fit)?;
+        let sim = model.simulate(train).ok()?;
+        Some(Candidate { list, model, sim })
+    };
+    if !short {
+        return BASE_EFFECTS
+            .iter()
+            .find_map(|l| fit(l))
+            .into_iter()
+            .collect();
+    }
+    let (hysteretic, linear) = SHORT_BASE_EFFECTS.split_at(3);
+    let mut c: Vec<Candidate> = hysteretic.iter().filter_map(|l| fit(l)).collect();
+    if c.is_empty() {
+        c.extend(linear.iter().filter_map(|l| fit(l)));
+    }
+    c
 }
 
 /// Errors of a prediction `p` of `y` over `range`, in units of `std` (`None`: diverged, short or
@@ -255,24 +298,35 @@ impl NarxConfig {
             (true, None) => return Ok(m),
         };
         let networks = free_runs(reference, train);
-        let Some(g) = fit_base(train, n_fit) else {
+        let cands = candidates(train, n_fit, short);
+        if cands.is_empty() {
             return Ok(m);
-        };
-        let Ok(sim) = g.simulate(train) else {
-            return Ok(m);
-        };
+        }
         let mut base_errors = Vec::new();
+        let mut picks = Vec::new();
         let mut choices: Vec<BaseChoice> = Vec::new();
         for (o, om) in m.outputs.iter().enumerate() {
             let y = &train.outputs[o].values;
             let std = om.scaling.std;
-            let be = errors(y, &sim[o], n_fit..n, std);
+            // the simplest candidate, replaced by a richer one only when clearly better
+            let mut errs: Vec<Option<Vec<f64>>> = cands
+                .iter()
+                .map(|c| errors(y, &c.sim[o], n_fit..n, std))
+                .collect();
+            let mut pick = 0;
+            for i in 1..errs.len() {
+                if richer_wins(&errs[i], &errs[pick]) {
+                    pick = i;
+                }
+            }
+            let be = errs.swap_remove(pick);
             let ne = networks[o]
                 .as_ref()
                 .and_then(|p| errors(y, p, n_fit..n, std));
             let network_wins = richer_wins(&ne, &be);
             choices.push(BaseChoice {
                 name: om.name.clone(),
+                effects: cands[pick].model.config.effect_list(),
                 network_mse: mse(&ne),
                 base_mse: mse(&be),
                 residual_mse: None,
@@ -283,11 +337,21 @@ impl NarxConfig {
                 },
             });
             base_errors.push(be);
+            picks.push(pick);
         }
+        let sim: Vec<Vec<f64>> = picks
+            .iter()
+            .enumerate()
+            .map(|(o, &i)| cands[i].sim[o].clone())
+            .collect();
         let chosen: Vec<usize> = (0..choices.len())
             .filter(|&o| choices[o].model == BaseUse::Base)
             .collect();
-        let effects = g.config.effect_list();
+        let effects = cands
+            .iter()
+            .map(|c| c.model.config.effect_list())
+            .collect::<Vec<_>>()
+            .join("; ");
         if chosen.is_empty() {
             m.base = Some(GreyBoxBase {
                 effects,
@@ -310,12 +374,19 @@ impl NarxConfig {
             m.outputs[o].band = Band::calibrate(&r, &spread, BAND_LEVEL);
             m.outputs[o].band_members.clear();
         }
-        let (g, fitted_samples) = if short {
-            // refit on the whole record: every sample counts on a short record
-            match fit_base_like(&g, train) {
-                Some(full) => (full, n),
-                None => (g, n_fit),
+        let lists: Vec<&str> = cands.iter().map(|c| c.list).collect();
+        let mut models: Vec<FittedGreyBox> = cands.into_iter().map(|c| c.model).collect();
+        let fitted_samples = if short {
+            // refit the lists in use on the whole record: every sample counts on a short record
+            // (a list whose refit fails keeps the fit the tail judged)
+            for (i, g) in models.iter_mut().enumerate() {
+                if chosen.iter().any(|&o| picks[o] == i) {
+                    if let Some(full) = fit_list(train, lists[i], n) {
+                        *g = full;
+                    }
+                }
             }
+            n
         } else {
             let residual = ResidualFit {
                 sim: &sim,
@@ -324,12 +395,17 @@ impl NarxConfig {
                 n_fit,
             };
             self.fit_residual_networks(train, residual, &mut choices, &mut m);
-            (g, n_fit)
+            n_fit
         };
+        // one plant: each output's chain from the candidate it chose
+        let mut plant = models[picks[0]].plant.spec.clone();
+        for (o, out) in plant.outputs.iter_mut().enumerate() {
+            *out = models[picks[o]].plant.spec.outputs[o].clone();
+        }
         m.base = Some(GreyBoxBase {
             effects,
             fitted_samples,
-            plant: Some(g.plant.spec.clone()),
+            plant: Some(plant),
             outputs: choices,
         });
         Ok(m)
@@ -390,13 +466,4 @@ struct ResidualFit<'a> {
     chosen: &'a [usize],
     base_errors: &'a [Option<Vec<f64>>],
     n_fit: usize,
-}
-
-/// `g`'s model refitted on the whole of `train`.
-fn fit_base_like(g: &FittedGreyBox, train: &IoRecord) -> Option<FittedGreyBox> {
-    let mut cfg = g.config.clone();
-    cfg.options.train_fraction = 1.0;
-    cfg.options.samples_per_parameter = BASE_SAMPLES_PER_PARAMETER;
-    cfg.options.plays = BASE_PLAYS;
-    cfg.fit(train).ok()
 }
