@@ -44,7 +44,23 @@ fn a_2dof_record_with_new_input_combinations_in_its_test_half_is_identified() {
     let rec = am_2dof();
     let (train, test) = rec.split_halves();
     let cfg = NarxConfig::new(train.input_names(), train.output_names());
-    let m = cfg.fit(&train).unwrap();
+    let fit = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| cfg.fit(&train).unwrap())
+    };
+    let m = fit(2);
+    let bytes = |m: &FittedNarx| {
+        let mut m = m.clone();
+        m.train_seconds = 0.0;
+        m.to_json()
+    };
+    assert!(
+        bytes(&m) == bytes(&fit(1)),
+        "the same model at 1 and 2 threads"
+    );
     let base = m.base.as_ref().expect("the grey-box base was tried");
     let r2 = test_r2(&m, &train, &test);
     let mut networks = cfg.clone();

@@ -8,6 +8,7 @@ use crate::data::IoRecord;
 use crate::effect::fitting::{RecordError, RecordView};
 use crate::effect::{registry, Slot};
 use crate::plant::{PlantSpec, Units};
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// Initialise (plus `extra` starts), then two Levenberg-Marquardt stages: creep held fixed from
@@ -226,13 +227,13 @@ impl GreyBoxConfig {
         self.check_record(&train)?;
         let input_names = rec.input_names();
         let u: Vec<&[f64]> = train.inputs.iter().map(|s| s.values.as_slice()).collect();
-        let mut outputs = Vec::new();
-        let mut runs = Vec::new();
-        for o in 0..train.outputs.len() {
-            let (spec, run) = self.fit_output(&train, o, &u, &input_names)?;
-            outputs.push(spec);
-            runs.push(run);
-        }
+        // the outputs are independent problems: fitted in parallel, collected in order (the
+        // same bits whatever the thread count)
+        let fitted: Vec<_> = (0..train.outputs.len())
+            .into_par_iter()
+            .map(|o| self.fit_output(&train, o, &u, &input_names))
+            .collect::<Result<_, _>>()?;
+        let (outputs, runs): (Vec<_>, Vec<_>) = fitted.into_iter().unzip();
         let spec = PlantSpec {
             name: "greybox".into(),
             description: format!(

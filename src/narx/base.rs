@@ -39,6 +39,7 @@ use crate::data::IoRecord;
 use crate::graybox::{FittedGreyBox, GreyBoxConfig};
 use crate::metrics::significantly_lower_error;
 use crate::plant::{Plant, PlantSpec};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -222,7 +223,9 @@ fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
             .collect();
     }
     let (hysteretic, linear) = SHORT_BASE_EFFECTS.split_at(3);
-    let mut c: Vec<Candidate> = hysteretic.iter().filter_map(|l| fit(l)).collect();
+    // independent fits: in parallel, kept in list order
+    let fitted: Vec<Option<Candidate>> = hysteretic.par_iter().map(|l| fit(l)).collect();
+    let mut c: Vec<Candidate> = fitted.into_iter().flatten().collect();
     if c.is_empty() {
         c.extend(linear.iter().filter_map(|l| fit(l)));
     }
