@@ -48,20 +48,22 @@ use std::path::Path;
 pub const BASE_EFFECTS: [&str; 3] = [
     "hysteresis,creep,dynamics",
     "hysteresis,dynamics",
-    "dynamics",
+    LINEAR_BASE,
 ];
 
 /// The effect lists a short record's base is chosen from, simplest first: each one the record
-/// supports is fitted (they take milliseconds there) and, per output, a richer one replaces
-/// a simpler one only when its held-out errors are clearly lower. On 250 samples a mode
-/// fitted to a quasi-static plant, or to its creep, extrapolates badly; the static model
-/// does not.
-pub const SHORT_BASE_EFFECTS: [&str; 4] = [
+/// supports is fitted (a fraction of a second each at that length) and, per output, a richer
+/// one replaces a simpler one only when its held-out errors are clearly lower. On 250 samples
+/// a mode fitted to a quasi-static plant, or to its creep, extrapolates badly; the static
+/// model does not. When none fits (an input that does not reverse), [`LINEAR_BASE`].
+pub const SHORT_BASE_EFFECTS: [&str; 3] = [
     "hysteresis",
     "hysteresis,dynamics",
     "hysteresis,creep,dynamics",
-    "dynamics",
 ];
+
+/// The base of a record that supports no hysteresis: linear dynamics.
+pub const LINEAR_BASE: &str = "dynamics";
 
 /// What one output's model is made of.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -69,22 +71,14 @@ pub const SHORT_BASE_EFFECTS: [&str; 4] = [
 pub enum BaseUse {
     /// The network alone.
     Network,
-    /// The grey-box model alone (the output's network is kept in the file but not run).
+    /// The grey-box model alone (the output's network stays in the file: its free run is only
+    /// the second opinion that widens the band where the two part).
     Base,
     /// The grey-box model plus the output's network, trained on the grey-box residual.
     BaseAndNetwork,
 }
 
-impl BaseUse {
-    /// The name in files and tables.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            BaseUse::Network => "network",
-            BaseUse::Base => "base",
-            BaseUse::BaseAndNetwork => "base-and-network",
-        }
-    }
-}
+super::config::named_setting!(BaseUse, Network => "network", Base => "base", BaseAndNetwork => "base-and-network");
 
 /// The choice for one output: each candidate's free-run MSE on the held-out samples (the
 /// validation part, or the short-record probe's tail) in the output's standardised units
@@ -207,8 +201,8 @@ struct Candidate {
 }
 
 /// The candidate bases of `train` fitted on its first `n_fit` samples: on a short record every
-/// list of [`SHORT_BASE_EFFECTS`] it supports (`dynamics` only when no list with hysteresis
-/// fits), else the first of [`BASE_EFFECTS`].
+/// list of [`SHORT_BASE_EFFECTS`] it supports ([`LINEAR_BASE`] when none does), else the first
+/// of [`BASE_EFFECTS`].
 fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
     let fit = |list: &'static str| {
         let model = fit_list(train, list, n_fit)?;
@@ -222,12 +216,11 @@ fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
             .into_iter()
             .collect();
     }
-    let (hysteretic, linear) = SHORT_BASE_EFFECTS.split_at(3);
     // independent fits: in parallel, kept in list order
-    let fitted: Vec<Option<Candidate>> = hysteretic.par_iter().map(|l| fit(l)).collect();
-    let mut c: Vec<Candidate> = fitted.into_iter().flatten().collect();
+    let fitted: Vec<Option<Candidate>> = SHORT_BASE_EFFECTS.par_iter().map(|l| fit(l)).collect();
+    let c: Vec<Candidate> = fitted.into_iter().flatten().collect();
     if c.is_empty() {
-        c.extend(linear.iter().filter_map(|l| fit(l)));
+        return fit(LINEAR_BASE).into_iter().collect();
     }
     c
 }
