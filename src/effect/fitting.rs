@@ -53,10 +53,13 @@ pub struct Variant {
 }
 
 /// What a path term is built from.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct PathSetup<'a> {
     /// The path's input on the training record.
     pub u: &'a [f64],
+    /// Samples of `u` whose outputs the fit leaves out (a block of a cross-validation):
+    /// choices made from the data (thresholds, knots, ranges) see [`PathSetup::fitted_input`].
+    pub held_out: Option<std::ops::Range<usize>>,
     /// Sampling period in seconds.
     pub ts: f64,
     /// The sign of the path's gain in a linear fit of the output (+1 or -1).
@@ -66,6 +69,20 @@ pub struct PathSetup<'a> {
     pub plays: usize,
     /// The variant chosen (index into `Effect::variants`, 0 = the default).
     pub variant: usize,
+}
+
+impl PathSetup<'_> {
+    /// The path's input on the samples the fit sees (without the held-out block).
+    pub fn fitted_input(&self) -> std::borrow::Cow<'_, [f64]> {
+        match &self.held_out {
+            Some(r) if !r.is_empty() => {
+                let mut v = self.u[..r.start].to_vec();
+                v.extend_from_slice(&self.u[r.end..]);
+                std::borrow::Cow::Owned(v)
+            }
+            _ => std::borrow::Cow::Borrowed(self.u),
+        }
+    }
 }
 
 /// What an output filter is built from.

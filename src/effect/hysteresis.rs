@@ -408,6 +408,12 @@ impl TermFit for PiTerm<'_> {
     fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec {
         let n = self.thresholds.len();
         let m = self.knots.len();
+        if n + m == 0 && self.bw.is_none() {
+            return TermSpec {
+                spec: Some(Box::new(HysteresisSpec::Linear(LinearSpec { gain }))),
+                extra_paths: Vec::new(),
+            };
+        }
         let input_map = (m > 0).then(|| DeadZoneSpec {
             thresholds: self.knots.clone(),
             weights: coef[n..n + m].to_vec(),
@@ -559,18 +565,33 @@ impl Effect for HysteresisEffect {
     }
     fn term<'a>(&self, setup: &PathSetup<'a>) -> Option<Box<dyn TermFit + 'a>> {
         let u = setup.u;
+        if reversals(u) < 2 {
+            // no loop on this path's input (a cross path driven by a staircase, say): a
+            // linear path, the gain column alone; check_record asks one input to reverse
+            return Some(Box::new(PiTerm {
+                u,
+                thresholds: Vec::new(),
+                sign: setup.sign,
+                plays: Vec::new(),
+                knots: Vec::new(),
+                ramps: Vec::new(),
+                bw: None,
+            }));
+        }
+        // thresholds, knots and ranges from the samples fitted
+        let seen = setup.fitted_input();
         Some(match setup.variant {
             2 => Box::new(BoucWenTerm {
                 u,
-                range: max_abs(u),
+                range: max_abs(&seen),
             }),
             v => {
-                let thresholds = pi_thresholds(u, setup.plays);
+                let thresholds = pi_thresholds(&seen, setup.plays);
                 let plays = plays_of(u, &thresholds);
                 // a negative path cannot carry a Bouc-Wen term (A > 0 in the plant file)
-                let bw = (v == 0 && setup.sign > 0.0).then(|| max_abs(u));
+                let bw = (v == 0 && setup.sign > 0.0).then(|| max_abs(&seen));
                 let knots = if v == 0 {
-                    input_map_knots(u, input_map_ramps(setup.plays))
+                    input_map_knots(&seen, input_map_ramps(setup.plays))
                 } else {
                     Vec::new()
                 };
@@ -600,17 +621,27 @@ impl Effect for HysteresisEffect {
             _ => (3, 0),
         }
     }
+    /// One input at least must go up and down; the paths of inputs that do not are linear.
     fn check_record(&self, rec: &RecordView, _variant: usize) -> Result<(), RecordError> {
-        for (name, u) in rec.input_names.iter().zip(rec.inputs) {
-            let rev = reversals(u);
-            if rev < 2 {
-                return Err(RecordError::PoorlyExcited {
-                    input: name.to_string(),
-                    why: format!("it reverses direction {rev} times; a hysteresis loop needs the input to go up and down (at least 2 reversals, better several amplitudes)"),
-                });
-            }
+        let revs: Vec<usize> = rec.inputs.iter().map(|u| reversals(u)).collect();
+        if revs.iter().any(|&r| r >= 2) {
+            return Ok(());
         }
-        Ok(())
+        let (name, rev) = rec
+            .input_names
+            .iter()
+            .zip(&revs)
+            .next()
+            .map_or(("input", 0), |(n, &r)| (*n, r));
+        let others = if rec.inputs.len() > 1 {
+            " (nor does any other input)"
+        } else {
+            ""
+        };
+        Err(RecordError::PoorlyExcited {
+            input: name.to_string(),
+            why: format!("it reverses direction {rev} times{others}; a hysteresis loop needs the input to go up and down (at least 2 reversals, better several amplitudes)"),
+        })
     }
 }
 

@@ -15,6 +15,13 @@ pub struct FitOptions {
     pub tolerance: f64,
     /// Fraction of the record (from the start) used for fitting; 1 = the whole record.
     pub train_fraction: f64,
+    /// Samples of the fitted part that the fit leaves out (the model runs through them):
+    /// one block of a blocked cross-validation ([`GreyBoxConfig::cross_validate`]).
+    pub held_out: Option<std::ops::Range<usize>>,
+    /// Relative ridge on the hysteresis terms' coefficients (plays, input map, Bouc-Wen),
+    /// shrinking each path toward a linear gain: lambda * ||column||^2 * c^2 joins the cost
+    /// (0: none). A short record's base chooses it by cross-validation.
+    pub ridge: f64,
     /// A record too short for `plays` (about ten samples per parameter) is fitted with the most
     /// of 19, 9, 5 or 3 plays that it supports instead of being refused (a parsimonious model
     /// for a short record); off: `plays` or an error.
@@ -34,6 +41,8 @@ impl Default for FitOptions {
             max_iterations: 100,
             tolerance: 1e-10,
             train_fraction: 1.0,
+            held_out: None,
+            ridge: 0.0,
             adapt_plays: true,
             samples_per_parameter: 10,
         }

@@ -123,7 +123,13 @@ impl GreyBoxConfig {
     /// Check that the record can support this model: enough samples for the parameters,
     /// outputs and inputs that move, and what each effect needs.
     fn check_record(&self, rec: &IoRecord) -> Result<(), GreyBoxError> {
-        let n = rec.len();
+        // a held-out block does not count: it determines nothing
+        let held = self
+            .options
+            .held_out
+            .as_ref()
+            .map_or(0, |r| r.end.min(rec.len()).saturating_sub(r.start));
+        let n = rec.len() - held;
         let effects = self.effect_list();
         if rec.outputs.is_empty() {
             return Err(GreyBoxError::NoOutputs {
@@ -291,7 +297,9 @@ impl GreyBoxConfig {
                 train.ts,
                 st,
                 plays,
+                self.options.held_out.clone(),
             )
+            .with_ridge(self.options.ridge)
         };
         let prob = problem(&st, self.options.plays);
         // a variant that names a warm start also starts from the fit with that (simpler)
@@ -471,6 +479,7 @@ mod tests {
                 rec.ts,
                 &st,
                 cfg.options.plays,
+                None,
             );
             assert!(prob.n_theta() > 0, "{effects}");
             // a point away from zero in every parameter (creep gains, B, Gamma, f_n, zeta)
@@ -500,5 +509,45 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A cross input that never goes up and down (a rising staircase) cannot show a loop: its
+    /// path is fitted linear, the other input's path keeps its hysteresis; a record where no
+    /// input reverses is still refused.
+    #[test]
+    fn an_input_without_reversals_gets_a_linear_path() {
+        let mut rec = record(2, 2000);
+        let n = rec.len();
+        rec.inputs[1].values = (0..n).map(|k| (k * 8 / n) as f64 * 0.25).collect();
+        let fitted = GreyBoxConfig::from_effect_list("hysteresis,coupling")
+            .unwrap()
+            .fit(&rec)
+            .expect("a fit with a linear cross path");
+        let spec = serde_json::to_value(&fitted.plant.spec).unwrap();
+        for out in spec["outputs"].as_array().unwrap() {
+            let paths: Vec<String> = out["paths"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|p| p.to_string())
+                .collect();
+            let on = |input: &str, kind: &str| {
+                paths
+                    .iter()
+                    .any(|p| p.contains(&format!("\"input\":\"{input}\"")) && p.contains(kind))
+            };
+            assert!(on("u2", "linear") && !on("u2", "prandtl"), "{paths:?}");
+            assert!(on("u1", "prandtl"), "{paths:?}");
+        }
+        rec.inputs[0].values = (0..n).map(|k| k as f64 * 1e-3).collect();
+        let e = GreyBoxConfig::from_effect_list("hysteresis,coupling")
+            .unwrap()
+            .fit(&rec)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("reverses direction") && e.contains("nor does any other input"),
+            "{e}"
+        );
     }
 }

@@ -67,7 +67,16 @@ struct Layout<'a> {
 /// Everything needed to evaluate the model of one output for a parameter vector.
 pub(crate) struct OutputProblem<'a> {
     pub name: String,
-    y: &'a [f64],
+    /// The measured output, zero on the held-out samples.
+    y: Cow<'a, [f64]>,
+    /// Samples that the fit ignores (their rows of the basis, of the Jacobian and of `y` are
+    /// zero): the model still runs through them, so that a held-out block inside the record
+    /// scores it as a free run (blocked cross-validation).
+    held_out: Option<Range<usize>>,
+    /// Relative ridge on the terms' coefficients (not the path gains nor the offset):
+    /// lambda * ||psi_i||^2 * c_i^2 is added to the cost, shrinking a path toward its linear
+    /// gain; 0 = none.
+    ridge: f64,
     u: Vec<&'a [f64]>,
     pub input_names: Vec<String>,
     layout: Layout<'a>,
@@ -149,7 +158,9 @@ fn apply_chain_owned(prepared: &[Prepared], mut x: Vec<f64>) -> Vec<f64> {
 }
 
 impl<'a> OutputProblem<'a> {
-    /// Set up the problem of one output; `plays` play operators per Prandtl-Ishlinskii path.
+    /// Set up the problem of one output; `plays` play operators per Prandtl-Ishlinskii path;
+    /// the samples `held_out` do not enter the fit.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         name: &str,
         y: &'a [f64],
@@ -158,7 +169,19 @@ impl<'a> OutputProblem<'a> {
         ts: f64,
         structure: &OutputStructure,
         plays: usize,
+        held_out: Option<Range<usize>>,
     ) -> OutputProblem<'a> {
+        let held_out = held_out
+            .map(|r| r.start.min(y.len())..r.end.min(y.len()))
+            .filter(|r| !r.is_empty());
+        let y: Cow<'a, [f64]> = match &held_out {
+            Some(r) => {
+                let mut v = y.to_vec();
+                v[r.clone()].fill(0.0);
+                Cow::Owned(v)
+            }
+            None => Cow::Borrowed(y),
+        };
         let setup = |variant| OutputSetup {
             samples: y.len(),
             ts,
@@ -182,10 +205,13 @@ impl<'a> OutputProblem<'a> {
             .map(|(filter, params)| PlacedFilter { filter, params })
             .collect();
         // sign of each path's gain from a linear fit (PI weights share it)
-        let mut cols: Vec<&[f64]> = structure.paths.iter().map(|&j| u[j]).collect();
-        let ones = vec![1.0; y.len()];
-        cols.push(&ones);
-        let lin = least_squares(&cols, y);
+        let mut owned: Vec<Vec<f64>> = structure.paths.iter().map(|&j| u[j].to_vec()).collect();
+        owned.push(vec![1.0; y.len()]);
+        if let Some(r) = &held_out {
+            owned.iter_mut().for_each(|c| c[r.clone()].fill(0.0));
+        }
+        let cols: Vec<&[f64]> = owned.iter().map(Vec::as_slice).collect();
+        let lin = least_squares(&cols, &y);
         let mut paths = Vec::new();
         let mut n_cols = 0;
         for (k, &j) in structure.paths.iter().enumerate() {
@@ -196,6 +222,7 @@ impl<'a> OutputProblem<'a> {
             for c in &structure.terms {
                 let path = PathSetup {
                     u: u[j],
+                    held_out: held_out.clone(),
                     ts,
                     sign,
                     plays,
@@ -226,6 +253,8 @@ impl<'a> OutputProblem<'a> {
         OutputProblem {
             name: name.to_string(),
             y,
+            held_out,
+            ridge: 0.0,
             u,
             input_names,
             layout: Layout {
@@ -240,6 +269,32 @@ impl<'a> OutputProblem<'a> {
 
     pub fn n_theta(&self) -> usize {
         self.layout.n_theta
+    }
+
+    /// The same problem with a relative ridge `lambda` on the terms' coefficients.
+    pub fn with_ridge(mut self, lambda: f64) -> Self {
+        self.ridge = lambda.max(0.0);
+        self
+    }
+
+    /// Which basis columns the ridge shrinks: the terms' (not the gains, not the offset).
+    fn penalised(&self) -> Vec<bool> {
+        let mut p = vec![false; self.layout.n_cols];
+        if self.ridge > 0.0 {
+            for path in &self.layout.paths {
+                for t in &path.terms {
+                    p[t.cols.clone()].fill(true);
+                }
+            }
+        }
+        p
+    }
+
+    /// Zero a column's held-out rows.
+    fn hold_out(&self, c: &mut [f64]) {
+        if let Some(r) = &self.held_out {
+            c[r.clone()].fill(0.0);
+        }
     }
 
     /// The filters prepared at `th` (without those left out of the static model).
@@ -282,11 +337,13 @@ impl<'a> OutputProblem<'a> {
             .par_iter()
             .enumerate()
             .map(|(k, col)| {
-                if k == last {
+                let mut c = if k == last {
                     col.to_vec()
                 } else {
                     apply_chain(&prepared, col)
-                }
+                };
+                self.hold_out(&mut c);
+                c
             })
             .collect();
         let m = psi.len();
@@ -298,10 +355,15 @@ impl<'a> OutputProblem<'a> {
                     .collect()
             })
             .collect();
-        let g = DMatrix::from_fn(m, m, |i, j| if j >= i { rows[i][j] } else { rows[j][i] });
-        let b = DVector::from_iterator(m, psi.iter().map(|c| dot(c, self.y)));
+        let mut g = DMatrix::from_fn(m, m, |i, j| if j >= i { rows[i][j] } else { rows[j][i] });
+        let b = DVector::from_iterator(m, psi.iter().map(|c| dot(c, &self.y)));
         if g.iter().any(|v| !v.is_finite()) || b.iter().any(|v| !v.is_finite()) {
             return None;
+        }
+        let penalised = self.penalised();
+        let energy: Vec<f64> = (0..m).map(|i| g[(i, i)]).collect();
+        for (i, _) in penalised.iter().enumerate().filter(|(_, p)| **p) {
+            g[(i, i)] += self.ridge * energy[i];
         }
         let sol = nnls_gram(&g, &b, &cons);
         let mut r = self.y.to_vec();
@@ -312,7 +374,11 @@ impl<'a> OutputProblem<'a> {
                 }
             }
         }
-        let cost = 0.5 * r.iter().map(|v| v * v).sum::<f64>();
+        let penalty: f64 = (0..m)
+            .filter(|&i| penalised[i])
+            .map(|i| self.ridge * energy[i] * sol.coef[i] * sol.coef[i])
+            .sum();
+        let cost = 0.5 * (r.iter().map(|v| v * v).sum::<f64>() + penalty);
         if !cost.is_finite() {
             return None;
         }
@@ -337,6 +403,7 @@ impl<'a> OutputProblem<'a> {
         let cols: Vec<(usize, Vec<f64>)> = cols
             .into_par_iter()
             .map(|(q, mut c)| {
+                self.hold_out(&mut c);
                 if c.iter().all(|v| v.is_finite()) && !sol.passive.is_empty() {
                     let v: Vec<f64> = sol
                         .passive

@@ -35,8 +35,10 @@ mod error;
 mod fit;
 mod model;
 pub mod nnls;
+mod validate;
 
 pub use config::{FitOptions, GreyBoxConfig, Selected};
 pub use driver::train_samples;
 pub use error::GreyBoxError;
 pub use model::{FitSummary, FittedGreyBox, GreyBoxFile, OutputFit, FORMAT, VERSION};
+pub use validate::{blocks, CrossValidation};
