@@ -193,6 +193,31 @@ pub fn significantly_lower_error(a: &[f64], b: &[f64]) -> bool {
     ta < tb && t_below(&l)
 }
 
+/// Model selection by held-out errors: of candidates ordered simplest first (`None`: failed or
+/// diverged), the simplest whose errors the lowest-error candidate's do not clearly beat
+/// ([`significantly_lower_error`]); the one-standard-error rule (Breiman, Friedman, Olshen and
+/// Stone 1984, section 3.4.3) with a test in place of the standard error. All failed: 0.
+pub fn simplest_not_clearly_worse(errors: &[Option<Vec<f64>>]) -> usize {
+    let mse = |e: &Vec<f64>| e.iter().map(|v| v * v).sum::<f64>() / e.len().max(1) as f64;
+    let Some(best) = (0..errors.len())
+        .filter_map(|i| errors[i].as_ref().map(|e| (i, mse(e))))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(i, _)| i)
+    else {
+        return 0;
+    };
+    let lowest = errors[best]
+        .as_ref()
+        .expect("the best candidate has errors");
+    (0..best)
+        .find(|&i| {
+            errors[i]
+                .as_ref()
+                .is_some_and(|e| !significantly_lower_error(lowest, e))
+        })
+        .unwrap_or(best)
+}
+
 /// Whether the mean of the batch values `v` is significantly below zero: one-sided Student t
 /// at 5 % with `v.len() - 1` = 7 degrees of freedom (all values equal: their sign).
 fn t_below(v: &[f64]) -> bool {
@@ -366,5 +391,27 @@ mod loop_tests {
         let mut mixed: Vec<f64> = b.iter().map(|v| 0.5 * v).collect();
         mixed[..8].iter_mut().for_each(|v| *v *= 40.0);
         assert!(!significantly_lower_error(&mixed, &b));
+    }
+
+    #[test]
+    fn the_simplest_candidate_not_clearly_worse_is_chosen() {
+        // errors of one size but their own pattern (candidates do not err alike)
+        let e = |scale: f64| -> Option<Vec<f64>> {
+            let f = 0.3 + scale.fract();
+            Some(
+                (0..200)
+                    .map(|k| scale * ((k as f64 * f).sin() + 0.5 * (k as f64 * 1.37 * f).cos()))
+                    .collect(),
+            )
+        };
+        // simplest first: a tenfold error, one a little above the best, the best
+        assert_eq!(simplest_not_clearly_worse(&[e(10.0), e(1.02), e(1.0)]), 1);
+        // a failed simpler candidate is passed over
+        assert_eq!(simplest_not_clearly_worse(&[None, e(3.0), e(1.0)]), 2);
+        assert_eq!(simplest_not_clearly_worse(&[e(3.0), None, e(1.0)]), 2);
+        assert_eq!(simplest_not_clearly_worse(&[None, None]), 0);
+        // the best first stays
+        assert_eq!(simplest_not_clearly_worse(&[e(1.0), e(0.2)]), 1);
+        assert_eq!(simplest_not_clearly_worse(&[e(0.2), e(1.0)]), 0);
     }
 }

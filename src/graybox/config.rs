@@ -22,6 +22,10 @@ pub struct FitOptions {
     /// shrinking each path toward a linear gain: lambda * ||column||^2 * c^2 joins the cost
     /// (0: none). A short record's base chooses it by cross-validation.
     pub ridge: f64,
+    /// Choose each output's ridge among [`RIDGES`] by blocked cross-validation of the linear
+    /// coefficients at the fitted nonlinear parameters (`OutputProblem::ridge_by_cross_validation`),
+    /// then refit with it; `ridge` is then ignored.
+    pub choose_ridge: bool,
     /// A record too short for `plays` (about ten samples per parameter) is fitted with the most
     /// of 19, 9, 5 or 3 plays that it supports instead of being refused (a parsimonious model
     /// for a short record); off: `plays` or an error.
@@ -30,6 +34,12 @@ pub struct FitOptions {
     /// well; a caller that validates the model on held-out samples may ask for fewer).
     pub samples_per_parameter: usize,
 }
+
+/// The ridges tried when one is chosen by cross-validation, strongest (simplest model) first.
+pub const RIDGES: [f64; 5] = [1.0, 0.1, 0.01, 1e-3, 0.0];
+
+/// Blocks of the cross-validations that choose a ridge.
+pub const CV_FOLDS: usize = 4;
 
 /// The play counts a short record falls back to, most first.
 pub const FEWER_PLAYS: [usize; 4] = [19, 9, 5, 3];
@@ -43,6 +53,7 @@ impl Default for FitOptions {
             train_fraction: 1.0,
             held_out: None,
             ridge: 0.0,
+            choose_ridge: false,
             adapt_plays: true,
             samples_per_parameter: 10,
         }

@@ -1,7 +1,7 @@
 //! The driver: checks a record against a configuration, sets up one problem per output, runs
 //! the initialisation and Levenberg-Marquardt, and scores the fitted plant by simulating it.
 
-use super::config::FEWER_PLAYS;
+use super::config::{CV_FOLDS, FEWER_PLAYS, RIDGES};
 use super::fit::{levenberg_marquardt, Chosen, LmResult, OutputProblem, OutputStructure};
 use super::{FitSummary, FittedGreyBox, GreyBoxConfig, GreyBoxError, OutputFit};
 use crate::data::IoRecord;
@@ -329,6 +329,18 @@ impl GreyBoxConfig {
             &self.options,
         )?;
         res.iterations += iterations;
+        if self.options.choose_ridge {
+            let lambda = prob.ridge_by_cross_validation(&res.theta, &RIDGES, CV_FOLDS);
+            if lambda > 0.0 {
+                // the nonlinear parameters move a little with the ridge: refit from there
+                let ridged = problem(&st, self.options.plays).with_ridge(lambda);
+                let all = vec![true; ridged.n_theta()];
+                let r = levenberg_marquardt(&ridged, res.theta.clone(), &all, &self.options)?;
+                iterations = res.iterations + r.iterations;
+                res = r;
+                res.iterations = iterations;
+            }
+        }
         if std::env::var_os("HYSTBENCH_TRACE").is_some() {
             eprintln!(
                 "{}: {:.2} s ({} iterations)",
@@ -374,6 +386,7 @@ impl FittedGreyBox {
                 iterations: run.iterations,
                 converged: run.converged,
                 message: run.message.clone(),
+                ridge: run.ridge,
             });
         }
         for (p, name) in per.iter_mut().zip(self.plant.outputs.iter()) {

@@ -277,17 +277,84 @@ impl<'a> OutputProblem<'a> {
         self
     }
 
-    /// Which basis columns the ridge shrinks: the terms' (not the gains, not the offset).
-    fn penalised(&self) -> Vec<bool> {
+    /// Which basis columns a ridge shrinks: the terms' (not the gains, not the offset).
+    fn term_columns(&self) -> Vec<bool> {
         let mut p = vec![false; self.layout.n_cols];
-        if self.ridge > 0.0 {
-            for path in &self.layout.paths {
-                for t in &path.terms {
-                    p[t.cols.clone()].fill(true);
-                }
+        for path in &self.layout.paths {
+            for t in &path.terms {
+                p[t.cols.clone()].fill(true);
             }
         }
         p
+    }
+
+    /// The basis at `th` through the filters (without the dynamics for the static model),
+    /// held-out rows zero; the constant last.
+    fn filtered_basis(&self, th: &[f64], with_dynamics: bool) -> (Vec<Vec<f64>>, Vec<bool>) {
+        let (phi, cons) = self.basis(th);
+        let prepared = self.prepared(th, with_dynamics);
+        let last = phi.len() - 1;
+        let psi = phi
+            .par_iter()
+            .enumerate()
+            .map(|(k, col)| {
+                let mut c = if k == last {
+                    col.to_vec()
+                } else {
+                    apply_chain(&prepared, col)
+                };
+                self.hold_out(&mut c);
+                c
+            })
+            .collect();
+        (psi, cons)
+    }
+
+    /// The ridge of `ridges` (simplest model, i.e. strongest ridge, first) that a blocked
+    /// cross-validation of the linear coefficients at the fitted nonlinear parameters `th`
+    /// chooses ([`crate::metrics::simplest_not_clearly_worse`]). The Gram matrix is additive
+    /// over samples, so each block's fit is the whole record's normal equations minus the
+    /// block's: one pass over the record for every block and ridge. The nonlinear parameters
+    /// (modes, creep, Bouc-Wen shape) stay those fitted on every sample, which makes it cheap
+    /// on any record length; the plays, the input map and the gains are where a fit that saw a
+    /// narrow input range goes wrong outside it.
+    pub fn ridge_by_cross_validation(&self, th: &[f64], ridges: &[f64], folds: usize) -> f64 {
+        let (psi, cons) = self.filtered_basis(th, true);
+        let (m, n) = (psi.len(), self.y.len());
+        let blocks = super::blocks(n, folds);
+        let normal = |r: Range<usize>| {
+            let g = DMatrix::from_fn(m, m, |i, j| dot(&psi[i][r.clone()], &psi[j][r.clone()]));
+            let b = DVector::from_fn(m, |i, _| dot(&psi[i][r.clone()], &self.y[r.clone()]));
+            (g, b)
+        };
+        let parts: Vec<(DMatrix<f64>, DVector<f64>)> =
+            blocks.par_iter().map(|b| normal(b.clone())).collect();
+        let (mut g_all, mut b_all) = (DMatrix::zeros(m, m), DVector::zeros(m));
+        for (g, b) in &parts {
+            g_all += g;
+            b_all += b;
+        }
+        let terms = self.term_columns();
+        let held = self.held_out.clone().unwrap_or(0..0);
+        let errors: Vec<Option<Vec<f64>>> = ridges
+            .par_iter()
+            .map(|&lambda| {
+                let mut e = Vec::with_capacity(n);
+                for (block, (gb, bb)) in blocks.iter().zip(&parts) {
+                    let mut g = &g_all - gb;
+                    for i in (0..m).filter(|&i| terms[i]) {
+                        g[(i, i)] *= 1.0 + lambda;
+                    }
+                    let coef = nnls_gram(&g, &(&b_all - bb), &cons).coef;
+                    for k in block.clone().filter(|k| !held.contains(k)) {
+                        let fit: f64 = (0..m).map(|i| coef[i] * psi[i][k]).sum();
+                        e.push(self.y[k] - fit);
+                    }
+                }
+                e.iter().all(|v| v.is_finite()).then_some(e)
+            })
+            .collect();
+        ridges[crate::metrics::simplest_not_clearly_worse(&errors)]
     }
 
     /// Zero a column's held-out rows.
@@ -330,22 +397,7 @@ impl<'a> OutputProblem<'a> {
     /// Evaluate: basis through the filters, (non-negative) least squares, residual.
     /// `with_dynamics = false` evaluates the static model (initialisation).
     pub fn eval(&self, th: &[f64], with_dynamics: bool) -> Option<Eval> {
-        let (phi, cons) = self.basis(th);
-        let prepared = self.prepared(th, with_dynamics);
-        let last = phi.len() - 1;
-        let psi: Vec<Vec<f64>> = phi
-            .par_iter()
-            .enumerate()
-            .map(|(k, col)| {
-                let mut c = if k == last {
-                    col.to_vec()
-                } else {
-                    apply_chain(&prepared, col)
-                };
-                self.hold_out(&mut c);
-                c
-            })
-            .collect();
+        let (psi, cons) = self.filtered_basis(th, with_dynamics);
         let m = psi.len();
         let rows: Vec<Vec<f64>> = (0..m)
             .into_par_iter()
@@ -360,7 +412,11 @@ impl<'a> OutputProblem<'a> {
         if g.iter().any(|v| !v.is_finite()) || b.iter().any(|v| !v.is_finite()) {
             return None;
         }
-        let penalised = self.penalised();
+        let penalised: Vec<bool> = self
+            .term_columns()
+            .into_iter()
+            .map(|t| t && self.ridge > 0.0)
+            .collect();
         let energy: Vec<f64> = (0..m).map(|i| g[(i, i)]).collect();
         for (i, _) in penalised.iter().enumerate().filter(|(_, p)| **p) {
             g[(i, i)] += self.ridge * energy[i];
@@ -620,6 +676,8 @@ impl<'a> OutputProblem<'a> {
 /// The result of Levenberg-Marquardt on one output.
 pub(crate) struct LmResult {
     pub theta: Vec<f64>,
+    /// The ridge of the problem solved.
+    pub ridge: f64,
     pub eval: Eval,
     pub iterations: usize,
     pub converged: bool,
@@ -693,6 +751,7 @@ pub(crate) fn levenberg_marquardt(
     };
     Ok(LmResult {
         theta: out.theta,
+        ridge: prob.ridge,
         eval: out.eval,
         iterations: out.iterations,
         converged: out.stop.converged(),

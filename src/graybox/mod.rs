@@ -37,7 +37,7 @@ mod model;
 pub mod nnls;
 mod validate;
 
-pub use config::{FitOptions, GreyBoxConfig, Selected};
+pub use config::{FitOptions, GreyBoxConfig, Selected, CV_FOLDS, RIDGES};
 pub use driver::train_samples;
 pub use error::GreyBoxError;
 pub use model::{FitSummary, FittedGreyBox, GreyBoxFile, OutputFit, FORMAT, VERSION};

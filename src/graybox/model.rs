@@ -36,6 +36,9 @@ pub struct OutputFit {
     pub converged: bool,
     /// How the optimiser stopped.
     pub message: String,
+    /// The ridge on the hysteresis terms' coefficients (`FitOptions::ridge`; 0: none).
+    #[serde(default)]
+    pub ridge: f64,
 }
 
 /// How the model was fitted and how well it fits.

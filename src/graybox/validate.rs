@@ -139,4 +139,50 @@ mod tests {
             assert!((p - v).abs() < 1e-9);
         }
     }
+
+    /// The ridge chosen by cross-validation: the strongest on a linear plant (the hysteresis
+    /// terms explain nothing there), a weaker one that keeps the fit on a hysteretic plant.
+    #[test]
+    fn the_cross_validated_ridge_follows_the_plant() {
+        let n = 3000;
+        let u: Vec<f64> = (0..n)
+            .map(|k| {
+                let t = k as f64;
+                10.0 * (0.01 * t).sin() * (1.0 + 0.5 * (0.0013 * t).sin())
+            })
+            .collect();
+        // a deterministic noise of 0.1 % of the range
+        let noise = |k: usize| 0.02 * ((k as f64 * 12.9898).sin() * 43758.5453).fract();
+        let mut z = 0.0;
+        let play: Vec<f64> = u
+            .iter()
+            .map(|&v| {
+                z = crate::effect::play::play_operator(v, 3.0, z);
+                z
+            })
+            .collect();
+        let rec = |y: Vec<f64>| IoRecord {
+            path: "ridge.csv".into(),
+            ts: 1e-3,
+            t0: 0.0,
+            time_name: "t".into(),
+            inputs: vec![Signal {
+                name: "u".into(),
+                values: u.clone(),
+            }],
+            outputs: vec![Signal {
+                name: "y".into(),
+                values: y,
+            }],
+        };
+        let mut cfg = GreyBoxConfig::from_effect_list("hysteresis").unwrap();
+        cfg.options.choose_ridge = true;
+        let linear = rec((0..n).map(|k| 0.7 * u[k] + noise(k)).collect());
+        let fit = cfg.fit(&linear).unwrap();
+        assert_eq!(fit.fit.outputs[0].ridge, crate::graybox::RIDGES[0]);
+        let hysteretic = rec((0..n).map(|k| 0.4 * u[k] + 0.5 * play[k] + noise(k)).collect());
+        let fit = cfg.fit(&hysteretic).unwrap();
+        assert!(fit.fit.outputs[0].ridge < crate::graybox::RIDGES[0]);
+        assert!(fit.fit.r2.unwrap() > 0.9999, "{:?}", fit.fit.r2);
+    }
 }

@@ -16,10 +16,13 @@
 //!   y - g(u) (the same configuration as the network, features and sampling included), when
 //!   its validation errors are clearly lower than the grey-box's alone.
 //!
-//! A record too short for a validation part (see `RobustSettings::for_record`) fits the
-//! grey-box on all but the last [`super::fit::PROBE_TAIL`] and meets the short-record probe's
-//! network (trained without that tail) there; the grey-box that wins is refitted on the whole
-//! record and used alone (a network on the residual of 250 samples only learns their noise).
+//! A record too short for a validation part (see `RobustSettings::for_record`) is
+//! cross-validated instead: each candidate (effect list x ridge on its hysteresis terms) is
+//! fitted [`SHORT_FOLDS`] times, each time without one contiguous block, and judged on every
+//! sample's out-of-block free run; per output the simplest candidate that the best one does not
+//! clearly beat is kept and refitted on the whole record. The short-record probe's network
+//! (trained without the last block) meets it on that block, and replaces it only where the base
+//! does not describe the record ([`SHORT_BASE_DESCRIBES`]).
 //!
 //! The grey-box runs from rest. When the record predicted continues the training record (the
 //! test half of `identify`), it runs on through the training record first
@@ -36,8 +39,8 @@ use super::fit::PROBE_TAIL;
 use super::model::{FittedNarx, Mode};
 use super::NarxError;
 use crate::data::IoRecord;
-use crate::graybox::{FittedGreyBox, GreyBoxConfig};
-use crate::metrics::significantly_lower_error;
+use crate::graybox::{FittedGreyBox, GreyBoxConfig, CV_FOLDS, RIDGES};
+use crate::metrics::{significantly_lower_error, simplest_not_clearly_worse};
 use crate::plant::{Plant, PlantSpec};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -187,17 +190,13 @@ struct Candidate {
     sim: Vec<Vec<f64>>,
 }
 
-/// The ridges a short record's base is cross-validated with ([`crate::graybox::FitOptions::ridge`]),
-/// strongest (simplest model) first.
-pub const SHORT_RIDGES: [f64; 5] = [1.0, 0.1, 0.01, 1e-3, 0.0];
-
 /// The cross-validated free-run MSE (in units of the output's variance, about 1 - R^2) below
 /// which a short record's base describes the record: a network then does not replace it.
 pub const SHORT_BASE_DESCRIBES: f64 = 0.1;
 
 /// Blocks of a short record's cross-validation ([`GreyBoxConfig::cross_validate`]): the last
 /// is the probe's tail ([`PROBE_TAIL`]).
-pub const SHORT_FOLDS: usize = 4;
+pub const SHORT_FOLDS: usize = CV_FOLDS;
 
 /// The grey-box configuration of a base with these effects (`coupling` added on several
 /// inputs), fitted on the first `n_fit` samples of `train`.
@@ -214,20 +213,21 @@ fn list_config(train: &IoRecord, list: &str, n_fit: usize) -> Option<GreyBoxConf
     Some(cfg)
 }
 
-/// The grey-box model with these effects fitted on the first `n_fit` samples of `train` (all
-/// of them when `n_fit` is its length).
-fn fit_list(train: &IoRecord, list: &str, n_fit: usize) -> Option<FittedGreyBox> {
-    list_config(train, list, n_fit)?.fit(train).ok()
-}
-
 /// The candidate bases of `train` fitted on its first `n_fit` samples: on a short record every
 /// list of [`SHORT_BASE_EFFECTS`] it supports ([`LINEAR_BASE`] when none does), each
 /// cross-validated over [`SHORT_FOLDS`] blocks of the whole record; else the first of
 /// [`BASE_EFFECTS`], judged on its validation part.
+///
+/// References: S. Arlot, A. Celisse, Statistics Surveys 4:40-79, 2010 (cross-validation for
+/// model selection); L. Breiman, J. Friedman, R. Olshen, C. Stone, *Classification and
+/// Regression Trees*, Wadsworth, 1984, section 3.4.3 (the one-standard-error rule).
 fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
     if !short {
+        // the ridge per output by cross-validation at the fitted nonlinear parameters
         let fit = |list: &'static str| {
-            let model = fit_list(train, list, n_fit)?;
+            let mut cfg = list_config(train, list, n_fit)?;
+            cfg.options.choose_ridge = true;
+            let model = cfg.fit(train).ok()?;
             let sim = model.simulate(train).ok()?;
             Some(Candidate { list, model, sim })
         };
@@ -252,7 +252,7 @@ fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
     // parallel, kept in that order
     let grid: Vec<(&'static str, f64)> = SHORT_BASE_EFFECTS
         .iter()
-        .flat_map(|&l| SHORT_RIDGES.iter().map(move |&r| (l, r)))
+        .flat_map(|&l| RIDGES.iter().map(move |&r| (l, r)))
         .collect();
     let fitted: Vec<Option<Candidate>> = grid.into_par_iter().map(cross_validated).collect();
     let c: Vec<Candidate> = fitted.into_iter().flatten().collect();
@@ -342,19 +342,6 @@ fn trace_choice(
         cands[pick].model.config.options.ridge,
         mse(&network.as_ref().and_then(|p| tail(p))).unwrap_or(f64::NAN)
     );
-}
-
-/// The simplest of candidates ordered simplest first whose held-out errors the lowest-error
-/// candidate's do not clearly beat ([`richer_wins`]): the one-standard-error rule of model
-/// selection (Breiman et al. 1984, section 3.4.3) with a test in place of the standard error.
-fn simplest_not_clearly_worse(errs: &[Option<Vec<f64>>]) -> usize {
-    let best = (0..errs.len())
-        .filter_map(|i| mse(&errs[i]).map(|m| (i, m)))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map_or(0, |(i, _)| i);
-    (0..best)
-        .find(|&i| !richer_wins(&errs[best], &errs[i]))
-        .unwrap_or(best)
 }
 
 impl NarxConfig {
