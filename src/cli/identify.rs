@@ -38,9 +38,10 @@ pub struct IdentifyArgs {
     pub net: NetArgs,
     /// Effects whose basis signals (computed from the inputs, numbers fixed on the training
     /// record and stored in the model) are added as extra regressors: any effect that
-    /// `hystbench effects` lists with NARX features; `none` for the plain network. Without this option the default
-    /// protocol fits both the plain network and one with hysteresis features (play operators)
-    /// and keeps the better free run on the training record's validation part.
+    /// `hystbench effects` lists with NARX features; `none` (default) for the plain network (the
+    /// default protocol's grey-box base carries the physics); `auto` fits both the plain network
+    /// and one with hysteresis features (play operators) and keeps the better free run on the
+    /// training record's validation part.
     #[arg(long, value_delimiter = ',')]
     pub features: Vec<String>,
     /// The grey-box base candidate of the default protocol: `auto` fits a grey-box model of
@@ -239,8 +240,8 @@ pub fn cell(v: Option<f64>, diverged: Option<usize>) -> String {
 pub fn feature_specs(names: &[String], train: &IoRecord) -> anyhow::Result<Vec<FeatureSpec>> {
     let mut effects: Vec<EffectName> = Vec::new();
     for n in names {
-        if n == "none" {
-            anyhow::bail!("--features none cannot be combined with effect names");
+        if n == "none" || n == "auto" {
+            anyhow::bail!("--features {n} cannot be combined with effect names");
         }
         let e: EffectName = n.parse().context("--features")?;
         if !effects.contains(&e) {
@@ -262,10 +263,13 @@ pub fn run(args: IdentifyArgs) -> anyhow::Result<()> {
         args.batch,
     );
     let mut cfg = cfg;
-    if !args.features.is_empty() {
+    let only = |word: &str| args.features.len() == 1 && args.features[0] == word;
+    if only("auto") {
+        cfg.robust.try_features = hystbench::effect::registry::narx_candidates();
+    } else if !args.features.is_empty() {
         // named features (or `none`) are taken as they are: no selection
         cfg.robust.try_features.clear();
-        if !(args.features.len() == 1 && args.features[0] == "none") {
+        if !only("none") {
             cfg.features = feature_specs(&args.features, &train)?;
         }
     }

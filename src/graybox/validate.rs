@@ -180,7 +180,9 @@ mod tests {
         let linear = rec((0..n).map(|k| 0.7 * u[k] + noise(k)).collect());
         let fit = cfg.fit(&linear).unwrap();
         assert_eq!(fit.fit.outputs[0].ridge, crate::graybox::RIDGES[0]);
-        let hysteretic = rec((0..n).map(|k| 0.4 * u[k] + 0.5 * play[k] + noise(k)).collect());
+        let hysteretic = rec((0..n)
+            .map(|k| 0.4 * u[k] + 0.5 * play[k] + noise(k))
+            .collect());
         let fit = cfg.fit(&hysteretic).unwrap();
         assert!(fit.fit.outputs[0].ridge < crate::graybox::RIDGES[0]);
         assert!(fit.fit.r2.unwrap() > 0.9999, "{:?}", fit.fit.r2);

@@ -344,7 +344,61 @@ fn trace_choice(
     );
 }
 
+/// The candidate judged best for output `o` ([`simplest_not_clearly_worse`] on the errors over
+/// `judged`, in units of `std`) and every candidate's errors.
+fn pick(
+    cands: &[Candidate],
+    o: usize,
+    y: &[f64],
+    judged: std::ops::Range<usize>,
+    std: f64,
+) -> (usize, Vec<Option<Vec<f64>>>) {
+    let errs: Vec<Option<Vec<f64>>> = cands
+        .iter()
+        .map(|c| errors(y, &c.sim[o], judged.clone(), std))
+        .collect();
+    (simplest_not_clearly_worse(&errs), errs)
+}
+
+/// A short record's base candidates, cross-validated before the networks are trained.
+pub(super) struct ShortBase {
+    candidates: Vec<Candidate>,
+    /// Whether the base describes every output ([`SHORT_BASE_DESCRIBES`]): the networks are
+    /// then only its second opinion, which fewer restarts give as well.
+    pub describes_every_output: bool,
+}
+
 impl NarxConfig {
+    /// Whether the protocol tries a grey-box base.
+    fn tries_base(&self) -> bool {
+        self.protocol == Protocol::Default && self.robust.try_greybox
+    }
+
+    /// Whether a training record of `n` samples is short (no validation part).
+    fn short_record(&self, n: usize) -> bool {
+        self.robust.for_record(n).validation_fraction == 0.0
+    }
+
+    /// On a short record, the base's candidates cross-validated (`None` on a longer record or
+    /// when no base is tried).
+    pub(super) fn short_base(&self, train: &IoRecord) -> Option<ShortBase> {
+        let n = train.len();
+        if !self.tries_base() || !self.short_record(n) {
+            return None;
+        }
+        let candidates = candidates(train, n, true);
+        let describes_every_output = !candidates.is_empty()
+            && train.outputs.iter().enumerate().all(|(o, s)| {
+                let std = super::regressors::Standardiser::fit(&s.values).std;
+                let (p, errs) = pick(&candidates, o, &s.values, 0..n, std);
+                mse(&errs[p]).is_some_and(|m| m < SHORT_BASE_DESCRIBES)
+            });
+        Some(ShortBase {
+            candidates,
+            describes_every_output,
+        })
+    }
+
     /// The grey-box base candidate of the default protocol (module documentation): fitted on
     /// the part of `train` that the network's selection does not score, and kept per output
     /// unless the network's free run is clearly better on those held-out samples (the
@@ -355,12 +409,13 @@ impl NarxConfig {
         train: &IoRecord,
         mut m: FittedNarx,
         probe: Option<&FittedNarx>,
+        short_base: Option<ShortBase>,
     ) -> Result<FittedNarx, NarxError> {
-        if self.protocol != Protocol::Default || !self.robust.try_greybox {
+        if !self.tries_base() {
             return Ok(m);
         }
         let n = train.len();
-        let short = self.robust.for_record(n).validation_fraction == 0.0;
+        let short = self.short_record(n);
         let held = if short {
             PROBE_TAIL
         } else {
@@ -375,7 +430,10 @@ impl NarxConfig {
             (true, None) => return Ok(m),
         };
         let networks = free_runs(reference, train);
-        let cands = candidates(train, n_fit, short);
+        let cands = match short_base {
+            Some(b) => b.candidates,
+            None => candidates(train, n_fit, short),
+        };
         if cands.is_empty() {
             return Ok(m);
         }
@@ -388,11 +446,7 @@ impl NarxConfig {
             // the simplest candidate that the best one does not clearly beat, judged on every
             // out-of-block sample of a short record, else on the validation part
             let judged = if short { 0..n } else { n_fit..n };
-            let errs: Vec<Option<Vec<f64>>> = cands
-                .iter()
-                .map(|c| errors(y, &c.sim[o], judged.clone(), std))
-                .collect();
-            let pick = simplest_not_clearly_worse(&errs);
+            let (pick, errs) = pick(&cands, o, y, judged, std);
             let be = errors(y, &cands[pick].sim[o], n_fit..n, std);
             if std::env::var_os("HYSTBENCH_TRACE").is_some() {
                 let tail = |p: &[f64]| errors(y, p, n_fit..n, std);

@@ -183,9 +183,10 @@ pub struct RobustSettings {
     /// Feature selection by the protocol: the model is fitted without and with these effects'
     /// basis signals (`Effect::features` on the training record, added to
     /// `features`), and the one with the lower free-run validation error (training record only,
-    /// summed over the outputs in standardised units) is kept. Default: hysteresis (play
-    /// operators); empty: no selection. Ignored by `study` and on records under
-    /// [`SHORT_RECORD`] samples (no validation part to decide on).
+    /// summed over the outputs in standardised units) is kept. Default: empty, no selection
+    /// (the grey-box base carries the physics; `identify --features auto` and
+    /// [`crate::effect::registry::narx_candidates`] try the hysteresis plays). Ignored by
+    /// `study` and on records under [`SHORT_RECORD`] samples (no validation part to decide on).
     #[serde(default)]
     pub try_features: Vec<EffectName>,
     /// The features are kept only when they bring the free-run validation MSE below this
@@ -288,7 +289,7 @@ impl Default for RobustSettings {
             sim_patience: 6,
             weight_decay: 0.0,
             short_record_settings: true,
-            try_features: crate::effect::registry::narx_candidates(),
+            try_features: Vec::new(),
             feature_gain: feature_gain(),
             ensemble: None,
             combine: Combine::Median,

@@ -21,7 +21,7 @@
 //! - A. H. Ribeiro, L. A. Aguirre, Neurocomputing 316:222-231, 2018 (simulation error).
 
 use super::band::{Band, BAND_LEVEL};
-use super::config::{NarxConfig, Protocol, RobustSettings};
+use super::config::{NarxConfig, Protocol, RobustSettings, SHORT_ENSEMBLE};
 use super::mlp::Mlp;
 use super::model::{
     best_restart, ensemble_free_run, input_slices, names_str, DecimationSelection,
@@ -113,10 +113,20 @@ impl NarxConfig {
     /// [`FeatureSelection`]); the chosen features end up in the fitted model's `config.features`.
     pub fn fit(&self, train: &IoRecord) -> Result<FittedNarx, NarxError> {
         let t0 = std::time::Instant::now();
-        let m = self.fit_selecting_features(train)?;
-        let (m, probe) = self.probe_linear(train, m)?;
-        let m = self.choose_decimation(train, m)?;
-        let mut m = self.choose_base(train, m, probe.as_ref())?;
+        // a short record's base first: where it describes every output, the networks are only
+        // its second opinion (the band's spread, a fallback) and half the restarts serve
+        let short_base = self.short_base(train);
+        let mut cfg = self.clone();
+        if short_base
+            .as_ref()
+            .is_some_and(|b| b.describes_every_output)
+        {
+            cfg.robust.restarts = Some(self.robust.restarts_for(train.len()).min(SHORT_ENSEMBLE));
+        }
+        let m = cfg.fit_selecting_features(train)?;
+        let (m, probe) = cfg.probe_linear(train, m)?;
+        let m = cfg.choose_decimation(train, m)?;
+        let mut m = cfg.choose_base(train, m, probe.as_ref(), short_base)?;
         m.input_region = Some(InputRegion::of(std::slice::from_ref(train)));
         m.train_seconds = t0.elapsed().as_secs_f64();
         Ok(m)
