@@ -1,10 +1,11 @@
 //! # A grey-box base under the networks
 //!
-//! The default protocol's physical candidate. A grey-box model (`crate::graybox`: hysteresis,
-//! creep and dynamics from the effect library, as many of them as the record supports, with
-//! coupling on a record of several inputs) is fitted on the training record's fitting part and
-//! run free over the whole training record; its errors on the validation part (the samples the
-//! network's selection scores) meet the network's free-run errors there, per output:
+//! The default protocol's physical candidate. Grey-box models (`crate::graybox`: hysteresis
+//! alone, with dynamics, with creep and dynamics, from the effect library, with coupling on a
+//! record of several inputs; each with its ridge chosen per output) are fitted on the training
+//! record's fitting part and run free over the whole training record; per output the simplest
+//! that the best does not clearly beat on the validation part is kept, and its errors there
+//! (the samples the network's selection scores) meet the network's free-run errors, per output:
 //!
 //! - [`BaseUse::Network`]: the network alone, as before, when its errors are clearly lower
 //!   (a one-sided test of equal mean squared error over batch means,
@@ -46,20 +47,13 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// The effect lists tried in turn on a record with a validation part; the first one the record
-/// supports is fitted (`coupling` is added on a record of several inputs).
+/// The effect lists a base is chosen from, simplest first: each one the record supports is
+/// fitted and, per output, the simplest whose held-out errors the best one's do not clearly
+/// beat is kept (`coupling` is added on a record of several inputs). A mode fitted to a
+/// quasi-static plant costs a sample of lag at every step of the input, and on a short record
+/// a mode or creep fitted to what is not there extrapolates badly; the static model does
+/// neither. When none fits (no input reverses), [`LINEAR_BASE`].
 pub const BASE_EFFECTS: [&str; 3] = [
-    "hysteresis,creep,dynamics",
-    "hysteresis,dynamics",
-    LINEAR_BASE,
-];
-
-/// The effect lists a short record's base is chosen from, simplest first: each one the record
-/// supports is fitted (a fraction of a second each at that length) and, per output, a richer
-/// one replaces a simpler one only when its held-out errors are clearly lower. On 250 samples
-/// a mode fitted to a quasi-static plant, or to its creep, extrapolates badly; the static
-/// model does not. When none fits (an input that does not reverse), [`LINEAR_BASE`].
-pub const SHORT_BASE_EFFECTS: [&str; 3] = [
     "hysteresis",
     "hysteresis,dynamics",
     "hysteresis,creep,dynamics",
@@ -213,10 +207,10 @@ fn list_config(train: &IoRecord, list: &str, n_fit: usize) -> Option<GreyBoxConf
     Some(cfg)
 }
 
-/// The candidate bases of `train` fitted on its first `n_fit` samples: on a short record every
-/// list of [`SHORT_BASE_EFFECTS`] it supports ([`LINEAR_BASE`] when none does), each
-/// cross-validated over [`SHORT_FOLDS`] blocks of the whole record; else the first of
-/// [`BASE_EFFECTS`], judged on its validation part.
+/// The candidate bases of `train`: every list of [`BASE_EFFECTS`] it supports ([`LINEAR_BASE`]
+/// when none does); on a short record each with every ridge of [`RIDGES`], cross-validated
+/// over [`SHORT_FOLDS`] blocks of the whole record; else fitted on the first `n_fit` samples
+/// with its ridge chosen per output, judged on the validation part.
 ///
 /// References: S. Arlot, A. Celisse, Statistics Surveys 4:40-79, 2010 (cross-validation for
 /// model selection); L. Breiman, J. Friedman, R. Olshen, C. Stone, *Classification and
@@ -231,11 +225,12 @@ fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
             let sim = model.simulate(train).ok()?;
             Some(Candidate { list, model, sim })
         };
-        return BASE_EFFECTS
-            .iter()
-            .find_map(|l| fit(l))
-            .into_iter()
-            .collect();
+        let fitted: Vec<Option<Candidate>> = BASE_EFFECTS.par_iter().map(|l| fit(l)).collect();
+        let c: Vec<Candidate> = fitted.into_iter().flatten().collect();
+        if c.is_empty() {
+            return fit(LINEAR_BASE).into_iter().collect();
+        }
+        return c;
     }
     let cross_validated = |(list, ridge): (&'static str, f64)| {
         let mut cfg = list_config(train, list, train.len())?;
@@ -250,7 +245,7 @@ fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
     };
     // simplest first: each list with its ridges from the strongest; independent fits, in
     // parallel, kept in that order
-    let grid: Vec<(&'static str, f64)> = SHORT_BASE_EFFECTS
+    let grid: Vec<(&'static str, f64)> = BASE_EFFECTS
         .iter()
         .flat_map(|&l| RIDGES.iter().map(move |&r| (l, r)))
         .collect();
