@@ -52,12 +52,25 @@ use std::path::Path;
 /// beat is kept (`coupling` is added on a record of several inputs). A mode fitted to a
 /// quasi-static plant costs a sample of lag at every step of the input, and on a short record
 /// a mode or creep fitted to what is not there extrapolates badly; the static model does
-/// neither. When none fits (no input reverses), [`LINEAR_BASE`].
-pub const BASE_EFFECTS: [&str; 3] = [
+/// neither. Each chain comes with its Bouc-Wen operator alone first (three parameters a
+/// path, saturating loops that extrapolate as the physics does) and then the default operator
+/// (Prandtl-Ishlinskii plays, an input map and a Bouc-Wen term: any loop shape, but plays and
+/// ramps fitted to a few hundred samples can extrapolate badly). When none fits (no input
+/// reverses), [`LINEAR_BASE`].
+pub const BASE_EFFECTS: [&str; 6] = [
+    "bouc-wen",
     "hysteresis",
+    "bouc-wen,dynamics",
     "hysteresis,dynamics",
+    "bouc-wen,creep,dynamics",
     "hysteresis,creep,dynamics",
 ];
+
+/// Whether a list's hysteresis is the Bouc-Wen operator alone (one coefficient a path beside
+/// its gain: nothing for a ridge to shrink).
+fn bouc_wen_only(list: &str) -> bool {
+    list.split(',').any(|e| e == "bouc-wen")
+}
 
 /// The base of a record that supports no hysteresis: linear dynamics.
 pub const LINEAR_BASE: &str = "dynamics";
@@ -220,7 +233,7 @@ fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
         // the ridge per output by cross-validation at the fitted nonlinear parameters
         let fit = |list: &'static str| {
             let mut cfg = list_config(train, list, n_fit)?;
-            cfg.options.choose_ridge = true;
+            cfg.options.choose_ridge = !bouc_wen_only(list);
             let model = cfg.fit(train).ok()?;
             let sim = model.simulate(train).ok()?;
             Some(Candidate { list, model, sim })
@@ -247,7 +260,10 @@ fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
     // parallel, kept in that order
     let grid: Vec<(&'static str, f64)> = BASE_EFFECTS
         .iter()
-        .flat_map(|&l| RIDGES.iter().map(move |&r| (l, r)))
+        .flat_map(|&l| {
+            let ridges: &[f64] = if bouc_wen_only(l) { &[0.0] } else { &RIDGES };
+            ridges.iter().map(move |&r| (l, r))
+        })
         .collect();
     let fitted: Vec<Option<Candidate>> = grid.into_par_iter().map(cross_validated).collect();
     let c: Vec<Candidate> = fitted.into_iter().flatten().collect();
