@@ -66,6 +66,44 @@ pub const BASE_EFFECTS: [&str; 6] = [
     "hysteresis,creep,dynamics",
 ];
 
+/// The samples of a long record's fitting part that the base's lists are fitted on to choose
+/// among them (the first ones): a grey-box model has tens of parameters, which 20,000 samples
+/// determine; the lists chosen are then refitted on the whole fitting part. On a record of
+/// 150,000 samples this fits the six lists on a third of the fitting part each.
+pub const BASE_SELECTION_SAMPLES: usize = 20_000;
+
+/// A long record's candidate with these effects, fitted on the first `n_fit` samples with its
+/// ridge chosen per output (cross-validation at the fitted nonlinear parameters), and its free
+/// run over the training record.
+fn long_candidate(train: &IoRecord, list: &'static str, n_fit: usize) -> Option<Candidate> {
+    let mut cfg = list_config(train, list, n_fit)?;
+    cfg.options.choose_ridge = !bouc_wen_only(list);
+    let model = cfg.fit(train).ok()?;
+    let sim = model.simulate(train).ok()?;
+    Some(Candidate { list, model, sim })
+}
+
+/// The candidates that `picks` name and that were fitted on fewer than `n_fit` samples,
+/// refitted on the first `n_fit` (in parallel; a refit that fails keeps the selection's fit).
+fn refit_picked(train: &IoRecord, cands: &mut [Candidate], picks: &[usize], n_fit: usize) {
+    let mut todo: Vec<usize> = picks
+        .iter()
+        .copied()
+        .filter(|&i| cands[i].model.fit.train_samples < n_fit)
+        .collect();
+    todo.sort_unstable();
+    todo.dedup();
+    let refits: Vec<(usize, Option<Candidate>)> = todo
+        .into_par_iter()
+        .map(|i| (i, long_candidate(train, cands[i].list, n_fit)))
+        .collect();
+    for (i, c) in refits {
+        if let Some(c) = c {
+            cands[i] = c;
+        }
+    }
+}
+
 /// Whether a list's hysteresis is the Bouc-Wen operator alone (one coefficient a path beside
 /// its gain: nothing for a ridge to shrink).
 fn bouc_wen_only(list: &str) -> bool {
@@ -230,14 +268,10 @@ fn list_config(train: &IoRecord, list: &str, n_fit: usize) -> Option<GreyBoxConf
 /// Regression Trees*, Wadsworth, 1984, section 3.4.3 (the one-standard-error rule).
 fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
     if !short {
-        // the ridge per output by cross-validation at the fitted nonlinear parameters
-        let fit = |list: &'static str| {
-            let mut cfg = list_config(train, list, n_fit)?;
-            cfg.options.choose_ridge = !bouc_wen_only(list);
-            let model = cfg.fit(train).ok()?;
-            let sim = model.simulate(train).ok()?;
-            Some(Candidate { list, model, sim })
-        };
+        // on at most BASE_SELECTION_SAMPLES of the fitting part; the lists chosen are refitted
+        // on all of it ([`refit_picked`])
+        let fit =
+            |list: &'static str| long_candidate(train, list, n_fit.min(BASE_SELECTION_SAMPLES));
         let fitted: Vec<Option<Candidate>> = BASE_EFFECTS.par_iter().map(|l| fit(l)).collect();
         let c: Vec<Candidate> = fitted.into_iter().flatten().collect();
         if c.is_empty() {
@@ -441,28 +475,41 @@ impl NarxConfig {
             (true, None) => return Ok(m),
         };
         let networks = free_runs(reference, train);
-        let cands = match short_base {
+        let mut cands = match short_base {
             Some(b) => b.candidates,
             None => candidates(train, n_fit, short),
         };
         if cands.is_empty() {
             return Ok(m);
         }
+        // per output, the simplest candidate that the best one does not clearly beat, judged
+        // on every out-of-block sample of a short record, else on the validation part
+        let judged = if short { 0..n } else { n_fit..n };
+        let (picks, judged_mse): (Vec<usize>, Vec<Option<f64>>) = m
+            .outputs
+            .iter()
+            .enumerate()
+            .map(|(o, om)| {
+                let y = &train.outputs[o].values;
+                let std = om.scaling.std;
+                let (pick, errs) = pick(&cands, o, y, judged.clone(), std);
+                if std::env::var_os("HYSTBENCH_TRACE").is_some() {
+                    let tail = |p: &[f64]| errors(y, p, n_fit..n, std);
+                    trace_choice(&om.name, o, &cands, &errs, pick, tail, &networks[o]);
+                }
+                (pick, mse(&errs[pick]))
+            })
+            .unzip();
+        if !short {
+            refit_picked(train, &mut cands, &picks, n_fit);
+        }
         let mut base_errors = Vec::new();
-        let mut picks = Vec::new();
         let mut choices: Vec<BaseChoice> = Vec::new();
         for (o, om) in m.outputs.iter().enumerate() {
             let y = &train.outputs[o].values;
             let std = om.scaling.std;
-            // the simplest candidate that the best one does not clearly beat, judged on every
-            // out-of-block sample of a short record, else on the validation part
-            let judged = if short { 0..n } else { n_fit..n };
-            let (pick, errs) = pick(&cands, o, y, judged, std);
+            let pick = picks[o];
             let be = errors(y, &cands[pick].sim[o], n_fit..n, std);
-            if std::env::var_os("HYSTBENCH_TRACE").is_some() {
-                let tail = |p: &[f64]| errors(y, p, n_fit..n, std);
-                trace_choice(&om.name, o, &cands, &errs, pick, tail, &networks[o]);
-            }
             let ne = networks[o]
                 .as_ref()
                 .and_then(|p| errors(y, p, n_fit..n, std));
@@ -471,7 +518,7 @@ impl NarxConfig {
             // networks trained on a few hundred samples fail (development zoos: every network
             // chosen so lost to the base on the test half). There the network must also find
             // a base that does not describe the record.
-            let describes = mse(&errs[pick]).is_some_and(|m| m < SHORT_BASE_DESCRIBES);
+            let describes = judged_mse[o].is_some_and(|m| m < SHORT_BASE_DESCRIBES);
             let network_wins = richer_wins(&ne, &be) && !(short && describes);
             choices.push(BaseChoice {
                 name: om.name.clone(),
@@ -486,7 +533,6 @@ impl NarxConfig {
                 },
             });
             base_errors.push(be);
-            picks.push(pick);
         }
         let sim: Vec<Vec<f64>> = picks
             .iter()
