@@ -19,7 +19,7 @@
 //! ```
 
 use crate::data::IoRecord;
-use crate::diagnose::{diagnose, DiagnoseOptions};
+use crate::diagnose::{diagnose_model, DiagnoseOptions};
 use crate::effect::EffectName;
 use crate::graybox::{FittedGreyBox, GreyBoxConfig, GreyBoxError};
 use crate::model::{plant_effects, predict_finite, Model, ModelError};
@@ -123,6 +123,8 @@ pub enum Progress<'a> {
     NoGain,
     /// A candidate model is being fitted (its effect list).
     Fitting(&'a str),
+    /// A candidate model could not be fitted (its effect list, why): it is left out.
+    Skipped(&'a str, &'a GreyBoxError),
     /// The candidates of a step and their RMS errors.
     Tried(&'a [(EffectName, f64)]),
     /// The model chosen at a step, the model of rung `step` (save it here to keep it whatever
@@ -205,7 +207,16 @@ fn refit_candidates(
     for &effect in candidates {
         let trial = config.with_effect(effect);
         progress(Progress::Fitting(&trial.effect_list()));
-        let fitted = trial.fit(io)?;
+        // a candidate the record cannot support (too short for its time constants, say) is
+        // left out; the error when none can be fitted
+        let fitted = match trial.fit(io) {
+            Ok(f) => f,
+            Err(e) if candidates.len() > 1 => {
+                progress(Progress::Skipped(&trial.effect_list(), &e));
+                continue;
+            }
+            Err(e) => return Err(e.into()),
+        };
         let e = mean_scores(&fitted, io, from)?.rmse;
         tried.push((effect, e));
         if best.as_ref().is_none_or(|(b, _, _)| e < *b) {
@@ -241,7 +252,7 @@ pub fn improve(
     for step in 0..=opts.max_steps {
         let Evaluated { rmse, r2, pred } = mean_scores(model.as_ref(), io, from)?;
         let effects = model.effects();
-        let d = diagnose(io, &pred, &effects, &opts.diagnose);
+        let d = diagnose_model(io, &pred, &config, &opts.diagnose);
         progress(Progress::Step {
             step,
             effects: &effects,

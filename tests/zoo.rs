@@ -263,3 +263,56 @@ fn a_small_zoo_is_scored_against_the_linear_baseline() {
         }
     }
 }
+
+/// `zoo loop`: on a small development zoo (seed 7, long and short 1-DoF members, first 3,000
+/// samples), the diagnosis names the hidden effect in the cases where refitting with it cuts
+/// the error 3x or more, and names nothing on the complete models.
+#[test]
+fn the_loop_over_a_small_zoo_names_the_hidden_effects() {
+    let t = tempfile::tempdir().unwrap();
+    let z = t.path().join("z");
+    let o = hystbench(&[
+        "zoo",
+        "--count",
+        "8",
+        "--seed",
+        "7",
+        "--classes",
+        "1dof-short,1dof-long",
+        "--out",
+        s(&z),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = hystbench(&["zoo", "loop", s(&z), "--max-samples", "10"]);
+    assert!(!o.status.success() && stderr(&o).contains("--max-samples 10"));
+    let o = hystbench(&["zoo", "loop", s(t.path()), "--quiet"]);
+    assert!(!o.status.success() && stderr(&o).contains("not a zoo folder"));
+    let o = hystbench(&[
+        "zoo",
+        "loop",
+        s(&z),
+        "--max-samples",
+        "3000",
+        "--json",
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (mut decisive, mut right) = (0, 0);
+    for e in v["effects"].as_array().unwrap() {
+        decisive += e["decisive"].as_u64().unwrap();
+        right += e["decisive_right"].as_u64().unwrap();
+    }
+    println!(
+        "decisive {decisive}, named right {right}, {}",
+        v["false_alarms"]
+    );
+    assert!(decisive >= 5, "{v}");
+    assert!(right + 1 >= decisive, "{right} of {decisive}: {v}");
+    assert!(v["complete"].as_u64().unwrap() >= 5, "{v}");
+    assert_eq!(v["false_alarms"].as_u64(), Some(0), "{v}");
+    let csv = std::fs::read_to_string(z.join("loop/results.csv")).unwrap();
+    assert!(csv.starts_with("index,class,samples,effects"));
+    let report = std::fs::read_to_string(z.join("loop/report.md")).unwrap();
+    assert!(report.contains("| hysteresis |"), "{report}");
+}

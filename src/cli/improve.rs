@@ -70,6 +70,7 @@ fn show<'a>(
         ),
         Progress::NoGain => eprintln!("the error did not fall with the added effect; stopping"),
         Progress::Fitting(list) if !quiet => eprintln!("fitting {list} ..."),
+        Progress::Skipped(list, why) if !quiet => eprintln!("left out {list}: {why}"),
         Progress::Tried(tried) if !quiet => {
             let list: Vec<String> = tried.iter().map(|(e, r)| format!("{e} {r:.4}")).collect();
             eprintln!("tried: {} (RMS error); keeping the best", list.join(", "));

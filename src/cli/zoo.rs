@@ -38,6 +38,26 @@ pub enum Sub {
     /// Run the default identifier and a linear ARX baseline on every record (first half trains,
     /// second half tests); write DIR/score/{results.csv, report.md, r2.png} and print the report.
     Score(ScoreArgs),
+    /// Score the model-improvement loop: per member, diagnose the complete grey-box model (a
+    /// named effect is a false alarm), then hide each of its plant's effects in turn, fit the
+    /// others and run `improve`; report per effect how often the diagnosis named it, the error
+    /// fall and how close to the noise the loop ends. Writes DIR/loop/{results.csv, report.md}.
+    Loop(LoopArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct LoopArgs {
+    /// The zoo folder (made by `hystbench zoo`).
+    pub dir: PathBuf,
+    /// Fit and score on each record's first samples only.
+    #[arg(long, default_value_t = 20_000)]
+    pub max_samples: usize,
+    /// Print the summary and every member's cases as JSON instead of the report.
+    #[arg(long)]
+    pub json: bool,
+    /// Print nothing while working.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -55,6 +75,7 @@ pub struct ScoreArgs {
 pub fn run(a: Args) -> anyhow::Result<()> {
     match a.score {
         Some(Sub::Score(s)) => score(s),
+        Some(Sub::Loop(l)) => hidden_loop(l),
         None => make(a),
     }
 }
@@ -121,6 +142,64 @@ fn score(a: ScoreArgs) -> anyhow::Result<()> {
     write_atomic(&out.join("results.csv"), result.to_csv().as_bytes(), true)?;
     hystbench::plot::zoo_figure(result.curves(), &out.join("r2.png"), true)?;
     let md = result.to_markdown() + "\n![free-run test error per class](r2.png)\n";
+    write_atomic(&out.join("report.md"), md.as_bytes(), true)?;
+    if a.json {
+        crate::cli::print(&serde_json::to_string(&result)?);
+    } else {
+        crate::cli::print(&md);
+        crate::cli::print(&format!("written: {}", out.display()));
+    }
+    Ok(())
+}
+
+fn hidden_loop(a: LoopArgs) -> anyhow::Result<()> {
+    if a.max_samples < 100 {
+        anyhow::bail!(
+            "--max-samples {}: too few to fit a model; use at least 100 (default 20000)",
+            a.max_samples
+        );
+    }
+    let n = zoo::ZooIndex::read(&a.dir)?.members.len();
+    let done = AtomicUsize::new(0);
+    let opts = zoo::LoopOptions {
+        max_samples: a.max_samples,
+        ..Default::default()
+    };
+    let result = zoo::score_loop(&a.dir, &opts, &|m| {
+        let k = done.fetch_add(1, Ordering::Relaxed) + 1;
+        if a.quiet {
+            return;
+        }
+        let cases: Vec<String> = m
+            .hidden
+            .iter()
+            .map(|c| {
+                format!(
+                    "{} hidden: named {} (refit /{:.1})",
+                    c.effect,
+                    c.named.map_or("nothing", |e| e.as_str()),
+                    c.refit_fall
+                )
+            })
+            .collect();
+        eprintln!(
+            "[{k}/{n}] member {:>4} {:<10} {}: complete {}; {} in {:.1} s",
+            m.index,
+            m.class.name(),
+            hystbench::improve::effect_list(&m.effects),
+            match (m.rmse_complete, m.false_alarm) {
+                (None, _) => "not fitted".to_string(),
+                (Some(_), Some(e)) => format!("false alarm ({e})"),
+                (Some(_), None) => "nothing named".to_string(),
+            },
+            cases.join(", "),
+            m.seconds
+        );
+    })?;
+    let out = a.dir.join("loop");
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot make {}", out.display()))?;
+    write_atomic(&out.join("results.csv"), result.to_csv().as_bytes(), true)?;
+    let md = result.to_markdown();
     write_atomic(&out.join("report.md"), md.as_bytes(), true)?;
     if a.json {
         crate::cli::print(&serde_json::to_string(&result)?);

@@ -22,6 +22,7 @@
 //! - PHYSICS.md section 6 (diagnostic signatures of missing effects).
 
 pub mod compare;
+pub mod refit;
 pub mod regression;
 pub mod whiteness;
 
@@ -30,6 +31,7 @@ use crate::effect::basis::{BasisContext, EvidenceContext};
 use crate::effect::{registry, EffectName};
 pub use crate::metrics::holds;
 use crate::metrics::rms;
+pub use refit::{refit_check, RefitCheck, RefitOptions};
 use serde::Serialize;
 pub use whiteness::{whiteness, Whiteness};
 
@@ -44,6 +46,9 @@ pub struct DiagnoseOptions {
     pub threshold: f64,
     /// Lags of the correlation tests.
     pub max_lag: usize,
+    /// The refit test ([`refit`]) of a grey-box model's candidates (`None`: the basis banks
+    /// alone decide).
+    pub refit: Option<RefitOptions>,
 }
 
 impl Default for DiagnoseOptions {
@@ -51,6 +56,7 @@ impl Default for DiagnoseOptions {
         DiagnoseOptions {
             threshold: 0.3,
             max_lag: 30,
+            refit: Some(RefitOptions::default()),
         }
     }
 }
@@ -103,6 +109,9 @@ pub struct Diagnosis {
     /// a refit with each tells which one the record wants (`hystbench improve` does that).
     pub candidates: Vec<EffectName>,
     pub outputs: Vec<OutputDiagnosis>,
+    /// The refit test of the candidates, when the model's structure could be refitted: then
+    /// it decides `missing` and `candidates`.
+    pub refit: Option<RefitCheck>,
     /// What to do, in words.
     pub summary: Vec<String>,
 }
@@ -151,8 +160,123 @@ pub fn diagnose(
         missing,
         candidates,
         outputs,
+        refit: None,
         summary,
     }
+}
+
+/// Diagnose the prediction of a grey-box model whose structure `config` reproduces: the banks
+/// rank the effects it lacks, and the refit test ([`refit`]) of each decides what is missing
+/// (when `opts.refit` is set and the structure can be refitted on the record's first part).
+pub fn diagnose_model(
+    rec: &IoRecord,
+    predictions: &[Vec<f64>],
+    config: &crate::graybox::GreyBoxConfig,
+    opts: &DiagnoseOptions,
+) -> Diagnosis {
+    let effects = config.effects();
+    let mut d = diagnose(rec, predictions, &effects, opts);
+    let Some(ropts) = opts.refit else {
+        return d;
+    };
+    let tested: Vec<EffectName> = d.ranking.iter().map(|r| r.effect).collect();
+    let Some(check) = refit_check(config, rec, &tested, &ropts) else {
+        return d;
+    };
+    let named = check.named();
+    d.missing = named.first().copied();
+    d.candidates = named.clone();
+    for od in &mut d.outputs {
+        // the effect with the largest passing fall on this output
+        od.missing = check
+            .effects
+            .iter()
+            .filter_map(|e| {
+                let r = e.outputs.iter().find(|r| r.output == od.output)?;
+                (r.fall >= ropts.min_fall && r.p_value <= check.level).then_some((e.effect, r.fall))
+            })
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(e, _)| e);
+        od.candidates = named
+            .iter()
+            .copied()
+            .filter(|e| {
+                check.effects.iter().any(|x| {
+                    x.effect == *e
+                        && x.outputs.iter().any(|r| {
+                            r.output == od.output
+                                && r.fall >= ropts.min_fall
+                                && r.p_value <= check.level
+                        })
+                })
+            })
+            .collect();
+    }
+    d.summary = refit_summary(&check, &d, &effects);
+    d.refit = Some(check);
+    d
+}
+
+/// What to do, in words, from the refit test.
+fn refit_summary(check: &RefitCheck, d: &Diagnosis, model_effects: &[EffectName]) -> Vec<String> {
+    let mut s = vec![format!(
+        "refit test: `{}` refitted on the samples before {} with and without each effect, both run free over the rest; an effect is named when it cuts the held-out RMS error {:.1}x or more with a sign-flip p-value <= {:.2e} (a 5 % false-alarm rate over all tests)",
+        check.base, check.held_out_from, check.min_fall, check.level
+    )];
+    for e in &check.effects {
+        let line = match &e.not_fitted {
+            Some(why) => format!("  {}: not refitted: {why}", e.effect),
+            None => {
+                let outs: Vec<String> = e
+                    .outputs
+                    .iter()
+                    .map(|r| {
+                        format!(
+                            "{} {:.4} -> {:.4} ({:.2}x, p = {:.2e})",
+                            r.output, r.rms_without, r.rms_with, r.fall, r.p_value
+                        )
+                    })
+                    .collect();
+                format!(
+                    "  {}{}: {}",
+                    e.effect,
+                    if e.significant { " (named)" } else { "" },
+                    outs.join("; ")
+                )
+            }
+        };
+        s.push(line);
+    }
+    match d.missing {
+        Some(m) => {
+            if d.candidates.len() > 1 {
+                let others: Vec<&str> = d.candidates[1..].iter().map(|e| e.as_str()).collect();
+                s.push(format!(
+                    "{m} cuts the held-out error most; {} also pass{} (`hystbench improve` adds them one at a time)",
+                    others.join(", "),
+                    if others.len() == 1 { "es" } else { "" }
+                ));
+            }
+            let with: Vec<&str> = model_effects
+                .iter()
+                .chain(std::iter::once(&m))
+                .map(|e| e.as_str())
+                .collect();
+            s.push(format!(
+                "add it: hystbench fit --effects {} (grey-box), or hystbench identify --features {m} (NARX); hystbench improve does the loop",
+                with.join(",")
+            ));
+        }
+        None => {
+            let white = d.outputs.iter().all(|o| o.whiteness.white);
+            s.push(if white {
+                "nothing significant is missing: no effect of the library, refitted, cuts the held-out error significantly, and the residual is white".to_string()
+            } else {
+                "nothing significant is missing from the library's effects: none of them, refitted, cuts the held-out error significantly; the residual is not white, so what is left is noise, a misfit of the effects the model has, or an effect the library lacks".to_string()
+            });
+        }
+    }
+    s
 }
 
 /// The banks of every effect for one output (none for a record without inputs).

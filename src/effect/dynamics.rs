@@ -162,8 +162,15 @@ impl Operator for DynamicsOp {
     }
 }
 
+/// The lowest resonator of the diagnosis bank: five periods in the record, and no lower than
+/// Nyquist / 200 (a mode of a plant is seldom slower than a hundredth of the Nyquist frequency
+/// it is sampled at).
+fn lowest_resonator(span: f64, ts: f64) -> f64 {
+    (5.0 / span).max(0.0025 / ts)
+}
+
 /// Basis bank: the model's prediction passed through lightly damped second-order resonators
-/// (natural frequencies log-spaced by 1.3 from max(1 Hz, 50 / record span) to 0.35 / Ts,
+/// (natural frequencies log-spaced by 1.3 from [`lowest_resonator`] to 0.35 / Ts,
 /// damping 0.1; each with its one-sample delay, which spans the filter's two states), and a few
 /// short delays of the prediction (first-order lags, delays): a missing mode or lag acting on
 /// the prediction is a combination of them.
@@ -181,7 +188,7 @@ pub fn basis(ctx: &BasisContext) -> BasisBank {
         );
     }
     let span = n as f64 * ctx.ts;
-    let mut f = (50.0 / span).max(1.0);
+    let mut f = lowest_resonator(span, ctx.ts);
     let f_max = 0.35 / ctx.ts;
     // start the filters at the first value so that a non-zero start does not ring
     let y0 = y.first().copied().unwrap_or(0.0);

@@ -48,6 +48,19 @@ impl Class {
         }
     }
 
+    /// The acceptance floor the generalisation issue sets for the class: every output of a
+    /// record at free-run test R^2 `threshold` or more, on at least `share` of the records
+    /// (1-DoF records of 10,000 samples or more: 0.999 on 95 %; 1,000-5,000 samples: 0.99 on
+    /// 90 %; 2-DoF records of 500 samples: 0.99 on both outputs on 90 %). Classes without
+    /// one are reported at 0.99.
+    pub fn floor(self) -> (f64, Option<f64>) {
+        match self {
+            Class::OneDofLong => (0.999, Some(0.95)),
+            Class::OneDofShort | Class::TwoDofShort => (0.99, Some(0.90)),
+            Class::OneDofTiny | Class::TwoDofLong => (0.99, None),
+        }
+    }
+
     /// The share of the zoo's members in this class.
     fn weight(self) -> f64 {
         match self {

@@ -19,9 +19,11 @@
 //! ```
 
 pub mod draw;
+pub mod hidden;
 pub mod score;
 
 pub use draw::{member, Class, Member};
+pub use hidden::{score_loop, LoopOptions, LoopScore};
 pub use score::{score, ZooScore};
 
 use crate::data::{format_csv, JsonFileError};
@@ -305,4 +307,23 @@ fn write_folder(tmp: &Path, index: &ZooIndex, files: &[MemberFiles]) -> Result<(
     }
     let text = serde_json::to_string_pretty(index).expect("the index serialises") + "\n";
     write(INDEX, &text)
+}
+
+/// The member's outputs without measurement noise (its plant and scenario re-run).
+pub(crate) fn noiseless(dir: &Path, e: &IndexEntry) -> Result<Vec<Vec<f64>>, ZooError> {
+    let index = e.index;
+    let plant_path = dir.join(&e.plant);
+    let scen_path = dir.join(&e.scenario);
+    let plant = crate::plant::PlantSpec::read(&plant_path)
+        .and_then(|p| p.check(&plant_path))
+        .map_err(|source| ZooError::Plant { index, source })?;
+    let mut spec = crate::scenario::ScenarioSpec::read(&scen_path)
+        .map_err(|source| ZooError::Scenario { index, source })?;
+    spec.noise_std = crate::scenario::NoiseLevel::All(0.0);
+    let scenario = spec
+        .check(&scen_path)
+        .map_err(|source| ZooError::Scenario { index, source })?;
+    let sim = crate::simulator::simulate_scenario(&plant, &scenario, None)
+        .map_err(|source| ZooError::Simulate { index, source })?;
+    Ok(sim.record.outputs.into_iter().map(|s| s.values).collect())
 }

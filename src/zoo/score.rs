@@ -3,7 +3,7 @@
 //! half of every record and run free on the second; the free-run test R^2 per output, summed up
 //! per class.
 
-use super::{Class, IndexEntry, ZooError, ZooIndex};
+use super::{noiseless, Class, IndexEntry, ZooError, ZooIndex};
 use crate::data::{read_csv, IoRecord};
 use crate::narx::arx::fit_arx;
 use crate::narx::band::coverage;
@@ -95,6 +95,14 @@ pub struct ClassSummary {
     /// Records whose every output reaches 0.99 / 0.999.
     pub records_all_099: usize,
     pub records_all_0999: usize,
+    /// The class's floor ([`Class::floor`]) and the records whose every output reaches its
+    /// threshold: against the measurement, against the noiseless output, and the true plant
+    /// against the measurement (the ceiling the noise sets).
+    pub floor: f64,
+    pub floor_share: Option<f64>,
+    pub records_at_floor: usize,
+    pub records_at_floor_clean: usize,
+    pub records_at_floor_truth: usize,
     /// Outputs worse than the ARX baseline.
     pub worse_than_arx: usize,
     /// Outputs within 0.001 of the true plant's R^2 (as good as the noise allows).
@@ -118,25 +126,6 @@ pub struct ZooScore {
     pub seed: u64,
     pub records: Vec<RecordScore>,
     pub classes: Vec<ClassSummary>,
-}
-
-/// The member's outputs without measurement noise (its plant and scenario re-run).
-fn noiseless(dir: &Path, e: &IndexEntry) -> Result<Vec<Vec<f64>>, ZooError> {
-    let index = e.index;
-    let plant_path = dir.join(&e.plant);
-    let scen_path = dir.join(&e.scenario);
-    let plant = crate::plant::PlantSpec::read(&plant_path)
-        .and_then(|p| p.check(&plant_path))
-        .map_err(|source| ZooError::Plant { index, source })?;
-    let mut spec = crate::scenario::ScenarioSpec::read(&scen_path)
-        .map_err(|source| ZooError::Scenario { index, source })?;
-    spec.noise_std = crate::scenario::NoiseLevel::All(0.0);
-    let scenario = spec
-        .check(&scen_path)
-        .map_err(|source| ZooError::Scenario { index, source })?;
-    let sim = crate::simulator::simulate_scenario(&plant, &scenario, None)
-        .map_err(|source| ZooError::Simulate { index, source })?;
-    Ok(sim.record.outputs.into_iter().map(|s| s.values).collect())
 }
 
 /// R^2 of a free run against the noiseless output over `start..` (`None` when diverged).
@@ -265,11 +254,13 @@ fn summarise(class: Class, records: &[RecordScore]) -> Option<ClassSummary> {
         return None;
     }
     let outs: Vec<&OutputScore> = mine.iter().flat_map(|r| &r.outputs).collect();
-    let all = |t: f64| {
+    let every = |t: f64, f: fn(&OutputScore) -> Option<f64>| {
         mine.iter()
-            .filter(|r| r.outputs.iter().all(|o| o.r2.is_some_and(|v| v >= t)))
+            .filter(|r| r.outputs.iter().all(|o| f(o).is_some_and(|v| v >= t)))
             .count()
     };
+    let all = |t: f64| every(t, |o| o.r2);
+    let (floor, floor_share) = class.floor();
     let gaps: Vec<f64> = outs
         .iter()
         .filter_map(|o| Some(o.r2_train? - o.r2?))
@@ -285,6 +276,11 @@ fn summarise(class: Class, records: &[RecordScore]) -> Option<ClassSummary> {
         arx_clean: distribution(&outs.iter().map(|o| o.arx_r2_clean).collect::<Vec<_>>()),
         records_all_099: all(0.99),
         records_all_0999: all(0.999),
+        floor,
+        floor_share,
+        records_at_floor: all(floor),
+        records_at_floor_clean: every(floor, |o| o.r2_clean),
+        records_at_floor_truth: every(floor, |o| o.truth_r2),
         worse_than_arx: outs.iter().filter(|o| o.worse_than_arx()).count(),
         near_truth: outs
             .iter()
@@ -420,6 +416,21 @@ impl ZooScore {
                 share(c.near_truth, c.outputs),
                 c.median_gap.map_or("-".into(), |g| format!("{g:.2e}")),
                 c.median_seconds
+            );
+        }
+        s += "\nThe acceptance floors (every output of a record at the class's threshold): the records that reach it against the measurement, against the noiseless output (the model's own error), and the true plant against the measurement (the most the noise allows).\n\n| class | threshold | share asked | records | measured | noiseless | true plant (ceiling) |\n|---|---|---|---|---|---|---|\n";
+        for c in &self.classes {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} | {} |",
+                c.class,
+                c.floor,
+                c.floor_share
+                    .map_or("-".into(), |v| format!("{:.0} %", 100.0 * v)),
+                c.records,
+                share(c.records_at_floor, c.records),
+                share(c.records_at_floor_clean, c.records),
+                share(c.records_at_floor_truth, c.records),
             );
         }
         s += "\nAgainst the noiseless output (the model's own error, without the measurement noise):\n\n";
