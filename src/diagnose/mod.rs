@@ -220,8 +220,8 @@ pub fn diagnose_model(
 /// What to do, in words, from the refit test.
 fn refit_summary(check: &RefitCheck, d: &Diagnosis, model_effects: &[EffectName]) -> Vec<String> {
     let mut s = vec![format!(
-        "refit test: `{}` refitted on the samples before {} with and without each effect, both run free over the rest; an effect is named when it cuts the held-out RMS error {:.1}x or more with a sign-flip p-value <= {:.2e} (a 5 % false-alarm rate over all tests)",
-        check.base, check.held_out_from, check.min_fall, check.level
+        "refit test: `{}` refitted without samples {}..{} with and without each effect, both run free through them; an effect is named when it cuts the held-out RMS error {:.1}x or more with a sign-flip p-value <= {:.2e} (a 5 % false-alarm rate over all tests)",
+        check.base, check.held_out.start, check.held_out.end, check.min_fall, check.level
     )];
     for e in &check.effects {
         let line = match &e.not_fitted {

@@ -3,8 +3,8 @@
 //! The basis banks rank effects by a linear proxy; a present effect refitted can absorb what
 //! a missing one would explain (a loop mimics a lag on one drive frequency), and the proxy then
 //! misses it. The refit test asks the question the user asks: the model's structure is refitted
-//! on the first part of the record ([`RefitOptions::train_fraction`]) with and without each
-//! candidate effect, and both run free over the rest. The held-out part is cut in
+//! on the record without its middle part ([`RefitOptions::held_out`]) with and without each
+//! candidate effect, and both run free through it. The held-out part is cut in
 //! [`RefitOptions::blocks`] contiguous blocks; per block, d_b = SSE(without) - SSE(with). Under
 //! "the effect does not help", d_b is as likely negative as positive; the exact sign-flip test
 //! (all 2^B sign patterns of |d_b|) gives the p-value of sum d_b. An effect is named when its
@@ -21,7 +21,7 @@
 
 use crate::data::IoRecord;
 use crate::effect::EffectName;
-use crate::graybox::{train_samples, GreyBoxConfig};
+use crate::graybox::GreyBoxConfig;
 use crate::model::predict_finite;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -29,8 +29,10 @@ use serde::Serialize;
 /// Knobs of the refit test.
 #[derive(Debug, Clone, Copy)]
 pub struct RefitOptions {
-    /// The models are refitted on this first share of the record and scored on the rest.
-    pub train_fraction: f64,
+    /// The share of the record (from, to) that the refits leave out and are scored on: the
+    /// middle, so that the fits see both ends of the experiment (every level of a staircase,
+    /// both ends of a chirp) and the test interpolates rather than extrapolates.
+    pub held_out: (f64, f64),
     /// Blocks of the held-out part (at most 16: the sign-flip test enumerates 2^blocks).
     pub blocks: usize,
     /// Probability of naming an effect on a complete model (over all tests of a diagnosis).
@@ -42,7 +44,7 @@ pub struct RefitOptions {
 impl Default for RefitOptions {
     fn default() -> Self {
         RefitOptions {
-            train_fraction: 0.7,
+            held_out: (0.35, 0.65),
             blocks: 12,
             false_alarm: 0.05,
             min_fall: 1.5,
@@ -83,8 +85,8 @@ pub struct EffectRefit {
 pub struct RefitCheck {
     /// The refitted model without any candidate: its effect list.
     pub base: String,
-    /// First held-out sample.
-    pub held_out_from: usize,
+    /// The samples left out of the refits and scored.
+    pub held_out: std::ops::Range<usize>,
     /// Per-test level: `false_alarm` / number of tests.
     pub level: f64,
     pub min_fall: f64,
@@ -126,10 +128,10 @@ pub fn sign_flip_p(d: &[f64]) -> f64 {
     at_least as f64 / total as f64
 }
 
-/// Per block of `from..n`, the sum of squared errors of `pred` against `y`.
-fn block_sse(y: &[f64], pred: &[f64], from: usize, blocks: usize) -> Vec<f64> {
-    let n = y.len().min(pred.len());
-    let m = n.saturating_sub(from);
+/// Per block of `from..to`, the sum of squared errors of `pred` against `y`.
+fn block_sse(y: &[f64], pred: &[f64], range: &std::ops::Range<usize>, blocks: usize) -> Vec<f64> {
+    let from = range.start;
+    let m = range.len();
     (0..blocks)
         .map(|b| {
             let (lo, hi) = (from + b * m / blocks, from + (b + 1) * m / blocks);
@@ -151,12 +153,15 @@ pub fn refit_check(
     opts: &RefitOptions,
 ) -> Option<RefitCheck> {
     let blocks = opts.blocks.clamp(2, 16);
-    let from = train_samples(io.len(), opts.train_fraction);
-    if io.len() < from + blocks * 4 || candidates.is_empty() {
+    let n = io.len();
+    let at = |f: f64| ((n as f64 * f).round() as usize).min(n);
+    let held_out = at(opts.held_out.0)..at(opts.held_out.1);
+    if held_out.len() < blocks * 4 || candidates.is_empty() {
         return None;
     }
     let mut base_cfg = config.clone();
-    base_cfg.options.train_fraction = opts.train_fraction;
+    base_cfg.options.train_fraction = 1.0;
+    base_cfg.options.held_out = Some(held_out.clone());
     let base = base_cfg.fit(io).ok()?;
     let base_pred = predict_finite(&base, io).ok()?;
     let tests = (candidates.len() * io.outputs.len()).max(1);
@@ -188,10 +193,10 @@ pub fn refit_check(
                     .iter()
                     .enumerate()
                     .map(|(o, y)| {
-                        let without = block_sse(&y.values, &base_pred[o], from, blocks);
-                        let with = block_sse(&y.values, &pred[o], from, blocks);
+                        let without = block_sse(&y.values, &base_pred[o], &held_out, blocks);
+                        let with = block_sse(&y.values, &pred[o], &held_out, blocks);
                         let d: Vec<f64> = without.iter().zip(&with).map(|(a, b)| a - b).collect();
-                        let m = (io.len() - from) as f64;
+                        let m = held_out.len() as f64;
                         let rms_without = (without.iter().sum::<f64>() / m).sqrt();
                         let rms_with = (with.iter().sum::<f64>() / m).sqrt();
                         OutputRefit {
@@ -226,7 +231,7 @@ pub fn refit_check(
     });
     Some(RefitCheck {
         base: base_cfg.effect_list(),
-        held_out_from: from,
+        held_out,
         level,
         min_fall: opts.min_fall,
         effects,

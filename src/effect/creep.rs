@@ -235,14 +235,19 @@ pub static FIRST_ORDER: FeatureKind = FeatureKind {
 
 /// Creep time constants for the grey-box model: one per decade (powers of ten) from about 5
 /// samples to about a third of the record. `Err(needed samples)` when fewer than three (two
-/// decades) fit.
-pub fn creep_time_constants(samples: usize, ts: f64) -> Result<Vec<f64>, usize> {
+/// decades) fit, or with `parsimonious` fewer than one.
+pub fn creep_time_constants(
+    samples: usize,
+    ts: f64,
+    parsimonious: bool,
+) -> Result<Vec<f64>, usize> {
     let k_min = (5.0 * ts).log10().ceil() as i32;
     let span = samples as f64 * ts / 3.0;
     // the largest power of ten up to about twice a third of the record
     let k_max = (span.log10() + 0.3).floor() as i32;
-    if k_max < k_min + 2 {
-        let needed = (3.0 * 10f64.powf(k_min as f64 + 1.7) / ts).ceil() as usize;
+    let decades = if parsimonious { 0 } else { 2 };
+    if k_max < k_min + decades {
+        let needed = (3.0 * 10f64.powf(k_min as f64 + decades as f64 - 0.3) / ts).ceil() as usize;
         return Err(needed);
     }
     Ok((k_min..=k_max).map(|k| 10f64.powi(k)).collect())
@@ -452,19 +457,21 @@ impl Effect for CreepEffect {
         "the record is too short for creep time constants of 20 samples or more"
     }
     fn filter(&self, setup: &OutputSetup) -> Option<Box<dyn FilterFit>> {
-        let taus = creep_time_constants(setup.samples, setup.ts).ok()?;
+        let taus = creep_time_constants(setup.samples, setup.ts, setup.parsimonious).ok()?;
         Some(Box::new(CreepFilter { taus, ts: setup.ts }))
     }
     fn check_record(&self, rec: &RecordView, _variant: usize) -> Result<(), RecordError> {
         let (n, ts) = (rec.samples, rec.ts);
-        let taus = creep_time_constants(n, ts).map_err(|needed| RecordError::TooShort {
-            needed,
-            why: format!(
-                "creep needs time constants over at least two decades between 5 samples ({:.3e} s) and a third of the record ({:.3e} s); record longer holds",
-                5.0 * ts,
-                n as f64 * ts / 3.0
-            ),
-        })?;
+        let taus =
+            creep_time_constants(n, ts, rec.parsimonious).map_err(|needed| RecordError::TooShort {
+                needed,
+                why: format!(
+                    "creep needs time constants (powers of ten{}) between 5 samples ({:.3e} s) and a third of the record ({:.3e} s); a longer record holds them",
+                    if rec.parsimonious { "" } else { " over at least two decades" },
+                    5.0 * ts,
+                    n as f64 * ts / 3.0
+                ),
+            })?;
         let tau_mid = (taus[0] * taus[taus.len() - 1]).sqrt();
         for (name, u) in rec.input_names.iter().zip(rec.inputs) {
             let hold = longest_hold(u) as f64 * ts;

@@ -52,6 +52,15 @@ pub struct Variant {
     pub warm_start: Option<usize>,
 }
 
+/// A path's fitted operator and its output over the record, from the first stage of a
+/// two-stage fit: the second stage builds its terms on them (Kuhnen's dead zones on the output
+/// of a fitted Prandtl-Ishlinskii operator).
+#[derive(Debug, Clone)]
+pub struct PreviousPath {
+    pub output: std::sync::Arc<Vec<f64>>,
+    pub spec: std::sync::Arc<dyn super::EffectSpec>,
+}
+
 /// What a path term is built from.
 #[derive(Debug, Clone)]
 pub struct PathSetup<'a> {
@@ -69,6 +78,8 @@ pub struct PathSetup<'a> {
     pub plays: usize,
     /// The variant chosen (index into `Effect::variants`, 0 = the default).
     pub variant: usize,
+    /// The path's first-stage fit, in the second stage of a two-stage fit.
+    pub previous: Option<PreviousPath>,
 }
 
 impl PathSetup<'_> {
@@ -94,6 +105,9 @@ pub struct OutputSetup {
     pub ts: f64,
     /// The variant chosen.
     pub variant: usize,
+    /// A short record gets the fewest terms it supports (creep: one or two time constants
+    /// where it would need three).
+    pub parsimonious: bool,
 }
 
 /// One column of a term: the signal and whether its coefficient must be >= 0.
@@ -201,4 +215,6 @@ pub struct RecordView<'a> {
     pub inputs: &'a [&'a [f64]],
     pub samples: usize,
     pub ts: f64,
+    /// See [`OutputSetup::parsimonious`].
+    pub parsimonious: bool,
 }

@@ -357,30 +357,71 @@ pub fn input_map_knots(u: &[f64], n: usize) -> Vec<f64> {
         .collect()
 }
 
+/// The optional Bouc-Wen column beside a Prandtl-Ishlinskii term (the default operator's
+/// positive paths; `Some(input range)`): its nonlinear parameters, start grid, column, and
+/// the extra path it writes when its weight A is positive.
+fn bw_n_params(bw: Option<f64>) -> usize {
+    if bw.is_some() {
+        2
+    } else {
+        0
+    }
+}
+
+fn bw_param_names(bw: Option<f64>) -> Vec<&'static str> {
+    if bw.is_some() {
+        BOUC_WEN_PARAMS.to_vec()
+    } else {
+        Vec::new()
+    }
+}
+
+fn bw_start_grid(bw: Option<f64>) -> Vec<Vec<f64>> {
+    if bw.is_some() {
+        bouc_wen_grid()
+    } else {
+        Vec::new()
+    }
+}
+
+fn bw_column(u: &[f64], bw: Option<f64>, th: &[f64]) -> Option<Column<'static>> {
+    let (b, g) = bouc_wen_params(th, bw?);
+    Some((Cow::Owned(bouc_wen_column(u, b, g)), true))
+}
+
+/// The derivative of the output in Bouc-Wen parameter `q` (the column is the last one).
+fn bw_derivative(
+    u: &[f64],
+    bw: Option<f64>,
+    th: &[f64],
+    q: usize,
+    cols: &[&[f64]],
+    coef: &[f64],
+) -> Vec<f64> {
+    let last = cols.len() - 1;
+    bouc_wen_derivative(u, th, q, bw.unwrap_or(1.0), cols[last], coef[last])
+}
+
+fn bw_extra_path(bw: Option<f64>, th: &[f64], a: f64) -> Option<Box<dyn EffectSpec>> {
+    let range = bw?;
+    (a > 0.0).then(|| {
+        let (b, g) = bouc_wen_params(th, range);
+        Box::new(bouc_wen_term_spec(a, b, g, 0.0)) as Box<dyn EffectSpec>
+    })
+}
+
 impl TermFit for PiTerm<'_> {
     fn n_columns(&self) -> usize {
         self.plays.len() + self.ramps.len() + usize::from(self.bw.is_some())
     }
     fn n_params(&self) -> usize {
-        if self.bw.is_some() {
-            2
-        } else {
-            0
-        }
+        bw_n_params(self.bw)
     }
     fn param_names(&self) -> Vec<&'static str> {
-        if self.bw.is_some() {
-            BOUC_WEN_PARAMS.to_vec()
-        } else {
-            Vec::new()
-        }
+        bw_param_names(self.bw)
     }
     fn start_grid(&self) -> Vec<Vec<f64>> {
-        if self.bw.is_some() {
-            bouc_wen_grid()
-        } else {
-            Vec::new()
-        }
+        bw_start_grid(self.bw)
     }
     fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>> {
         let mut cols: Vec<Column<'s>> = Vec::with_capacity(self.n_columns());
@@ -394,16 +435,11 @@ impl TermFit for PiTerm<'_> {
         for r in &self.ramps {
             cols.push((Cow::Borrowed(r.as_slice()), false));
         }
-        if let Some(range) = self.bw {
-            let (b, g) = bouc_wen_params(th, range);
-            cols.push((Cow::Owned(bouc_wen_column(self.u, b, g)), true));
-        }
+        cols.extend(bw_column(self.u, self.bw, th));
         cols
     }
     fn derivative(&self, th: &[f64], q: usize, cols: &[&[f64]], coef: &[f64]) -> Vec<f64> {
-        let range = self.bw.unwrap_or(1.0);
-        let last = cols.len() - 1;
-        bouc_wen_derivative(self.u, th, q, range, cols[last], coef[last])
+        bw_derivative(self.u, self.bw, th, q, cols, coef)
     }
     fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec {
         let n = self.thresholds.len();
@@ -427,12 +463,166 @@ impl TermFit for PiTerm<'_> {
             dead_zones: None,
         };
         let mut extra_paths: Vec<Box<dyn EffectSpec>> = Vec::new();
-        if let Some(range) = self.bw {
-            let a = coef[n + m];
-            if a > 0.0 {
-                let (b, g) = bouc_wen_params(th, range);
-                extra_paths.push(Box::new(bouc_wen_term_spec(a, b, g, 0.0)));
+        if self.bw.is_some() {
+            extra_paths.extend(bw_extra_path(self.bw, th, coef[n + m]));
+        }
+        TermSpec {
+            spec: Some(Box::new(HysteresisSpec::PrandtlIshlinskii(spec))),
+            extra_paths,
+        }
+    }
+}
+
+/// Knots of the dead-zone map on a first-stage Prandtl-Ishlinskii output z: at 1/4, 1/2 and
+/// 3/4 of its largest value on each side of 0 that it reaches.
+pub const OUTPUT_MAP_KNOTS: [f64; 3] = [0.25, 0.5, 0.75];
+
+/// Kuhnen's modified Prandtl-Ishlinskii operator as the second stage of a two-stage fit:
+/// the first stage's operator (plays, input map) is kept, and its output z goes through a
+/// dead-zone superposition S[z] = c0 z + sum_j c_j S_{d_j}(z) (a saturating or asymmetric
+/// loop: the branches' slopes change along the output, which plays on the input cannot
+/// give), beside the path's gain and, on the default operator's positive paths, the Bouc-Wen
+/// column. S is fitted as a piecewise-linear map through 0 with a slope >= 0 between
+/// consecutive knots (non-negative least squares): it increases, as the operator must to be
+/// invertible, and its slopes convert to the dead zones' weights.
+///
+/// K. Kuhnen, "Modeling, identification and compensation of complex hysteretic
+/// nonlinearities: a modified Prandtl-Ishlinskii approach", European Journal of Control
+/// 9(4):407-418, 2003.
+struct OutputMapTerm<'a> {
+    u: &'a [f64],
+    /// The first stage's operator (no dead zones).
+    pi: PrandtlIshlinskiiSpec,
+    /// The nonzero knots d_j, increasing.
+    knots: Vec<f64>,
+    /// One column per interval between knots (the outer ones open): clamp(z, a, b) -
+    /// clamp(0, a, b), whose coefficient is S's slope there.
+    cols: Vec<Vec<f64>>,
+    bw: Option<f64>,
+}
+
+/// The slopes of S below the smallest slope kept (relative to the slope around 0): the
+/// dead-zone map must increase strictly.
+const MIN_RELATIVE_SLOPE: f64 = 1e-6;
+
+impl<'a> OutputMapTerm<'a> {
+    fn new(
+        setup: &PathSetup<'a>,
+        prev: &super::fitting::PreviousPath,
+        range: f64,
+    ) -> Option<OutputMapTerm<'a>> {
+        let Some(HysteresisSpec::PrandtlIshlinskii(pi)) =
+            prev.spec.as_any().downcast_ref::<HysteresisSpec>()
+        else {
+            return None;
+        };
+        if pi.dead_zones.is_some() {
+            return None;
+        }
+        let z = prev.output.as_slice();
+        let fitted = |k: &usize| setup.held_out.as_ref().is_none_or(|r| !r.contains(k));
+        let (lo, hi) = (0..z.len())
+            .filter(fitted)
+            .fold((0.0f64, 0.0f64), |(a, b), k| (a.min(z[k]), b.max(z[k])));
+        let mut knots = Vec::new();
+        for f in OUTPUT_MAP_KNOTS {
+            if hi > 0.0 {
+                knots.push(f * hi);
             }
+            if lo < 0.0 {
+                knots.push(f * lo);
+            }
+        }
+        knots.sort_by(f64::total_cmp);
+        let mut bounds = vec![f64::NEG_INFINITY];
+        bounds.extend(&knots);
+        bounds.push(f64::INFINITY);
+        let cols = bounds
+            .windows(2)
+            .map(|w| {
+                let at0 = 0.0f64.clamp(w[0], w[1]);
+                z.iter().map(|&v| v.clamp(w[0], w[1]) - at0).collect()
+            })
+            .collect();
+        Some(OutputMapTerm {
+            u: setup.u,
+            pi: pi.clone(),
+            knots,
+            cols,
+            bw: (setup.variant == 0 && setup.sign > 0.0).then_some(range),
+        })
+    }
+
+    /// The dead-zone superposition (thresholds with 0 among them, weights) of the slopes
+    /// `s` of S on the intervals between the knots.
+    fn dead_zones(&self, s: &[f64]) -> DeadZoneSpec {
+        // the interval around 0: the first whose upper bound is above 0
+        let mid = self.knots.iter().take_while(|&&d| d < 0.0).count();
+        let floor = MIN_RELATIVE_SLOPE * s[mid].abs().max(f64::MIN_POSITIVE);
+        let s: Vec<f64> = s.iter().map(|v| v.max(floor)).collect();
+        let mut thresholds = Vec::with_capacity(self.knots.len() + 1);
+        let mut weights = Vec::with_capacity(self.knots.len() + 1);
+        for (j, &d) in self.knots.iter().enumerate() {
+            if j == mid {
+                thresholds.push(0.0);
+                weights.push(s[mid]);
+            }
+            thresholds.push(d);
+            // knot j lies between intervals j and j + 1
+            weights.push(if d < 0.0 {
+                s[j] - s[j + 1]
+            } else {
+                s[j + 1] - s[j]
+            });
+        }
+        if mid == self.knots.len() {
+            thresholds.push(0.0);
+            weights.push(s[mid]);
+        }
+        DeadZoneSpec {
+            thresholds,
+            weights,
+        }
+    }
+}
+
+impl TermFit for OutputMapTerm<'_> {
+    fn n_columns(&self) -> usize {
+        self.cols.len() + usize::from(self.bw.is_some())
+    }
+    fn n_params(&self) -> usize {
+        bw_n_params(self.bw)
+    }
+    fn param_names(&self) -> Vec<&'static str> {
+        bw_param_names(self.bw)
+    }
+    fn start_grid(&self) -> Vec<Vec<f64>> {
+        bw_start_grid(self.bw)
+    }
+    fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>> {
+        let mut cols: Vec<Column<'s>> = self
+            .cols
+            .iter()
+            .map(|c| (Cow::Borrowed(c.as_slice()), true))
+            .collect();
+        cols.extend(bw_column(self.u, self.bw, th));
+        cols
+    }
+    fn derivative(&self, th: &[f64], q: usize, cols: &[&[f64]], coef: &[f64]) -> Vec<f64> {
+        bw_derivative(self.u, self.bw, th, q, cols, coef)
+    }
+    fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec {
+        let m = self.cols.len();
+        let spec = PrandtlIshlinskiiSpec {
+            dead_zones: Some(self.dead_zones(&coef[..m])),
+            ..self.pi.clone()
+        };
+        let mut extra_paths: Vec<Box<dyn EffectSpec>> = Vec::new();
+        if gain != 0.0 {
+            extra_paths.push(Box::new(HysteresisSpec::Linear(LinearSpec { gain })));
+        }
+        if self.bw.is_some() {
+            extra_paths.extend(bw_extra_path(self.bw, th, coef[m]));
         }
         TermSpec {
             spec: Some(Box::new(HysteresisSpec::PrandtlIshlinskii(spec))),
@@ -580,6 +770,11 @@ impl Effect for HysteresisEffect {
         }
         // thresholds, knots and ranges from the samples fitted
         let seen = setup.fitted_input();
+        if let (Some(prev), 0 | 1) = (&setup.previous, setup.variant) {
+            if let Some(t) = OutputMapTerm::new(setup, prev, max_abs(&seen)) {
+                return Some(Box::new(t));
+            }
+        }
         Some(match setup.variant {
             2 => Box::new(BoucWenTerm {
                 u,
@@ -664,4 +859,60 @@ pub fn reversals(u: &[f64]) -> usize {
         }
     }
     count
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The slopes of the piecewise-linear map fitted on the intervals between the knots
+    /// convert to a dead-zone superposition that gives the same map, increasing, and a valid
+    /// plant-file operator.
+    #[test]
+    fn the_output_map_slopes_convert_to_the_same_dead_zone_map() {
+        let z: Vec<f64> = (0..=400).map(|k| -3.0 + 8.0 * k as f64 / 400.0).collect();
+        let pi = PrandtlIshlinskiiSpec {
+            linear_weight: 1.0,
+            thresholds: vec![1.0],
+            weights: vec![0.5],
+            initial_state: 0.0,
+            input_map: None,
+            dead_zones: None,
+        };
+        let prev = super::super::fitting::PreviousPath {
+            output: std::sync::Arc::new(z.clone()),
+            spec: std::sync::Arc::new(HysteresisSpec::PrandtlIshlinskii(pi.clone())),
+        };
+        let u = vec![0.0; z.len()];
+        let setup = PathSetup {
+            u: &u,
+            held_out: None,
+            ts: 1e-3,
+            sign: 1.0,
+            plays: 5,
+            variant: 1,
+            previous: Some(prev.clone()),
+        };
+        let t = OutputMapTerm::new(&setup, &prev, 1.0).unwrap();
+        // knots at 1/4, 1/2, 3/4 of -3 and of 5: seven intervals
+        assert_eq!(t.knots.len(), 6);
+        assert_eq!(t.cols.len(), 7);
+        let slopes = [0.2, 0.5, 0.9, 1.0, 0.7, 0.3, 0.05];
+        let dz = t.dead_zones(&slopes);
+        let spec = PrandtlIshlinskiiSpec {
+            dead_zones: Some(dz.clone()),
+            ..pi
+        };
+        spec.check().expect("an increasing map is a valid operator");
+        for (k, &v) in z.iter().enumerate() {
+            let direct: f64 = slopes.iter().zip(&t.cols).map(|(s, c)| s * c[k]).sum();
+            let zones: f64 = dz
+                .thresholds
+                .iter()
+                .zip(&dz.weights)
+                .map(|(&d, &c)| c * dead_zone(v, d))
+                .sum();
+            assert!((direct - zones).abs() < 1e-12, "z {v}: {direct} vs {zones}");
+        }
+    }
 }

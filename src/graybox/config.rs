@@ -30,6 +30,13 @@ pub struct FitOptions {
     /// of 19, 9, 5 or 3 plays that it supports instead of being refused (a parsimonious model
     /// for a short record); off: `plays` or an error.
     pub adapt_plays: bool,
+    /// After the fit, try its second stage: the fitted Prandtl-Ishlinskii operators' outputs
+    /// through Kuhnen's dead-zone superposition (saturating and asymmetric loops), kept when
+    /// it fits better (off with `choose_ridge`).
+    pub output_map: bool,
+    /// A record too short for creep time constants over two decades gets one or two (the
+    /// most between 5 samples and a third of the record) instead of being refused.
+    pub parsimonious_creep: bool,
     /// Samples the record must hold per parameter (10: a model that the record determines
     /// well; a caller that validates the model on held-out samples may ask for fewer).
     pub samples_per_parameter: usize,
@@ -55,6 +62,8 @@ impl Default for FitOptions {
             ridge: 0.0,
             choose_ridge: false,
             adapt_plays: true,
+            output_map: true,
+            parsimonious_creep: true,
             samples_per_parameter: 10,
         }
     }

@@ -107,6 +107,10 @@ pub(crate) struct OutputStructure {
     pub paths: Vec<usize>,
     pub terms: Vec<Chosen>,
     pub filters: Vec<Chosen>,
+    /// Per path, its first-stage fit in the second stage of a two-stage fit (empty: none).
+    pub previous: Vec<Option<crate::effect::fitting::PreviousPath>>,
+    /// [`crate::effect::fitting::OutputSetup::parsimonious`].
+    pub parsimonious: bool,
 }
 
 /// Linear least squares of y on the columns (free coefficients), by the normal equations.
@@ -186,6 +190,7 @@ impl<'a> OutputProblem<'a> {
             samples: y.len(),
             ts,
             variant,
+            parsimonious: structure.parsimonious,
         };
         let built: Vec<Box<dyn FilterFit>> = structure
             .filters
@@ -227,6 +232,7 @@ impl<'a> OutputProblem<'a> {
                     sign,
                     plays,
                     variant: c.variant,
+                    previous: structure.previous.get(k).cloned().flatten(),
                 };
                 if let Some(term) = c.effect.term(&path) {
                     let (nc, np) = (term.n_columns(), term.n_params());

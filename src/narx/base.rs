@@ -255,6 +255,9 @@ fn list_config(train: &IoRecord, list: &str, n_fit: usize) -> Option<GreyBoxConf
     cfg.options.train_fraction = n_fit as f64 / train.len() as f64;
     cfg.options.samples_per_parameter = BASE_SAMPLES_PER_PARAMETER;
     cfg.options.plays = BASE_PLAYS;
+    // the base's lists and ridges are chosen by validation; the second stage is not in them
+    cfg.options.output_map = false;
+    cfg.options.parsimonious_creep = false;
     Some(cfg)
 }
 
