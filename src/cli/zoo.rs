@@ -139,15 +139,27 @@ fn score(a: ScoreArgs) -> anyhow::Result<()> {
     })?;
     let out = a.dir.join("score");
     std::fs::create_dir_all(&out).with_context(|| format!("cannot make {}", out.display()))?;
-    write_atomic(&out.join("results.csv"), result.to_csv().as_bytes(), true)?;
     hystbench::plot::zoo_figure(result.curves(), &out.join("r2.png"), true)?;
     let md = result.to_markdown() + "\n![free-run test error per class](r2.png)\n";
+    report(&out, &result.to_csv(), &md, a.json.then_some(&result))
+}
+
+/// Write `out/{results.csv, report.md}` and print the report, or `json` when given.
+fn report(
+    out: &std::path::Path,
+    csv: &str,
+    md: &str,
+    json: Option<&impl serde::Serialize>,
+) -> anyhow::Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("cannot make {}", out.display()))?;
+    write_atomic(&out.join("results.csv"), csv.as_bytes(), true)?;
     write_atomic(&out.join("report.md"), md.as_bytes(), true)?;
-    if a.json {
-        crate::cli::print(&serde_json::to_string(&result)?);
-    } else {
-        crate::cli::print(&md);
-        crate::cli::print(&format!("written: {}", out.display()));
+    match json {
+        Some(v) => crate::cli::print(&serde_json::to_string(v)?),
+        None => {
+            crate::cli::print(md);
+            crate::cli::print(&format!("written: {}", out.display()));
+        }
     }
     Ok(())
 }
@@ -196,16 +208,10 @@ fn hidden_loop(a: LoopArgs) -> anyhow::Result<()> {
             m.seconds
         );
     })?;
-    let out = a.dir.join("loop");
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot make {}", out.display()))?;
-    write_atomic(&out.join("results.csv"), result.to_csv().as_bytes(), true)?;
-    let md = result.to_markdown();
-    write_atomic(&out.join("report.md"), md.as_bytes(), true)?;
-    if a.json {
-        crate::cli::print(&serde_json::to_string(&result)?);
-    } else {
-        crate::cli::print(&md);
-        crate::cli::print(&format!("written: {}", out.display()));
-    }
-    Ok(())
+    report(
+        &a.dir.join("loop"),
+        &result.to_csv(),
+        &result.to_markdown(),
+        a.json.then_some(&result),
+    )
 }

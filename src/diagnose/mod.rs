@@ -187,34 +187,39 @@ pub fn diagnose_model(
     d.missing = named.first().copied();
     d.candidates = named.clone();
     for od in &mut d.outputs {
-        // the effect with the largest passing fall on this output
-        od.missing = check
+        // the effects that pass on this output, the largest fall first
+        let mut passing: Vec<(EffectName, f64)> = check
             .effects
             .iter()
             .filter_map(|e| {
                 let r = e.outputs.iter().find(|r| r.output == od.output)?;
-                (r.fall >= ropts.min_fall && r.p_value <= check.level).then_some((e.effect, r.fall))
+                r.passes.then_some((e.effect, r.fall))
             })
-            .max_by(|a, b| a.1.total_cmp(&b.1))
-            .map(|(e, _)| e);
+            .collect();
+        passing.sort_by(|a, b| b.1.total_cmp(&a.1));
+        od.missing = passing.first().map(|(e, _)| *e);
         od.candidates = named
             .iter()
             .copied()
-            .filter(|e| {
-                check.effects.iter().any(|x| {
-                    x.effect == *e
-                        && x.outputs.iter().any(|r| {
-                            r.output == od.output
-                                && r.fall >= ropts.min_fall
-                                && r.p_value <= check.level
-                        })
-                })
-            })
+            .filter(|e| passing.iter().any(|(p, _)| p == e))
             .collect();
     }
     d.summary = refit_summary(&check, &d, &effects);
     d.refit = Some(check);
     d
+}
+
+/// The commands that add `m` to a model with `model_effects`.
+fn add_it(model_effects: &[EffectName], m: EffectName) -> String {
+    let with: Vec<&str> = model_effects
+        .iter()
+        .chain(std::iter::once(&m))
+        .map(|e| e.as_str())
+        .collect();
+    format!(
+        "add it: hystbench fit --effects {} (grey-box), or hystbench identify --features {m} (NARX); hystbench improve does the loop",
+        with.join(",")
+    )
 }
 
 /// What to do, in words, from the refit test.
@@ -257,15 +262,7 @@ fn refit_summary(check: &RefitCheck, d: &Diagnosis, model_effects: &[EffectName]
                     if others.len() == 1 { "es" } else { "" }
                 ));
             }
-            let with: Vec<&str> = model_effects
-                .iter()
-                .chain(std::iter::once(&m))
-                .map(|e| e.as_str())
-                .collect();
-            s.push(format!(
-                "add it: hystbench fit --effects {} (grey-box), or hystbench identify --features {m} (NARX); hystbench improve does the loop",
-                with.join(",")
-            ));
+            s.push(add_it(model_effects, m));
         }
         None => {
             let white = d.outputs.iter().all(|o| o.whiteness.white);
@@ -502,15 +499,7 @@ fn summary(
                     summary.push(format!("{}: {msg}", od.output));
                 }
             }
-            let with: Vec<&str> = model_effects
-                .iter()
-                .chain(std::iter::once(&m))
-                .map(|e| e.as_str())
-                .collect();
-            summary.push(format!(
-                "add it: hystbench fit --effects {} (grey-box), or hystbench identify --features {m} (NARX); hystbench improve does the loop",
-                with.join(",")
-            ));
+            summary.push(add_it(model_effects, m));
         }
         None => {
             let white = outputs.iter().all(|o| o.whiteness.white);

@@ -63,6 +63,8 @@ pub struct OutputRefit {
     pub fall: f64,
     /// Sign-flip p-value of the held-out improvement.
     pub p_value: f64,
+    /// The fall is at least `min_fall` and the p-value at most the per-test level.
+    pub passes: bool,
 }
 
 /// One candidate effect.
@@ -199,24 +201,26 @@ pub fn refit_check(
                         let m = held_out.len() as f64;
                         let rms_without = (without.iter().sum::<f64>() / m).sqrt();
                         let rms_with = (with.iter().sum::<f64>() / m).sqrt();
+                        let fall = rms_without / rms_with.max(f64::MIN_POSITIVE);
+                        let p_value = sign_flip_p(&d);
                         OutputRefit {
                             output: y.name.clone(),
                             rms_without,
                             rms_with,
-                            fall: rms_without / rms_with.max(f64::MIN_POSITIVE),
-                            p_value: sign_flip_p(&d),
+                            fall,
+                            p_value,
+                            passes: fall >= opts.min_fall && p_value <= level,
                         }
                     })
                     .collect();
-                let passing = |r: &&OutputRefit| r.fall >= opts.min_fall && r.p_value <= level;
                 let fall = outputs
                     .iter()
-                    .filter(passing)
+                    .filter(|r| r.passes)
                     .map(|r| r.fall)
                     .fold(1.0, f64::max);
                 EffectRefit {
                     effect,
-                    significant: outputs.iter().any(|r| passing(&r)),
+                    significant: outputs.iter().any(|r| r.passes),
                     fall,
                     outputs,
                     not_fitted: None,

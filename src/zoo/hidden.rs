@@ -12,13 +12,13 @@
 //! Every fit and score uses the record's first [`LoopOptions::max_samples`] samples (the loop
 //! fits many models per member; the whole record is the user's, the bench's budget is not).
 
-use super::{noiseless, Class, IndexEntry, ZooError, ZooIndex};
+use super::{median, noiseless, share, Class, IndexEntry, ZooError, ZooIndex};
 use crate::data::{read_csv, IoRecord};
 use crate::diagnose::diagnose_model;
 use crate::effect::EffectName;
 use crate::graybox::GreyBoxConfig;
 use crate::improve::{effect_list, improve, ImproveOptions};
-use crate::metrics::rms;
+use crate::metrics::rmse;
 use crate::model::{plant_effects, predict_finite, Model};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -57,7 +57,8 @@ pub struct HiddenCase {
     pub effect: EffectName,
     /// RMS error (mean over outputs) of the model without the effect.
     pub rmse_hidden: f64,
-    /// What the diagnosis of that model named, and every effect it called a candidate.
+    /// What the diagnosis of that model named, and the candidates `improve` refitted at its
+    /// first step (the diagnosis' best first).
     pub named: Option<EffectName>,
     pub candidates: Vec<EffectName>,
     /// The error fall of the refit with the hidden effect: `rmse_hidden` / the complete
@@ -142,24 +143,22 @@ pub struct LoopScore {
     pub seconds: f64,
 }
 
-/// Mean over outputs of a model's RMS error on `io`.
+/// Mean over outputs of a model's RMS error on `io`, and its prediction.
 fn mean_rmse(model: &dyn Model, io: &IoRecord) -> Result<(f64, Vec<Vec<f64>>), String> {
     let pred = predict_finite(model, io).map_err(|e| e.to_string())?;
-    let e: f64 = io
-        .outputs
-        .iter()
-        .zip(&pred)
-        .map(|(y, p)| {
-            rms(&y
-                .values
-                .iter()
-                .zip(p)
-                .map(|(a, b)| a - b)
-                .collect::<Vec<f64>>())
-        })
-        .sum::<f64>()
-        / io.outputs.len().max(1) as f64;
+    let e = mean_over_outputs(io, &pred);
     Ok((e, pred))
+}
+
+/// Mean over the outputs of `io` of the RMS difference from `other` (one series per output,
+/// over their common length).
+fn mean_over_outputs(io: &IoRecord, other: &[Vec<f64>]) -> f64 {
+    io.outputs
+        .iter()
+        .zip(other)
+        .map(|(y, p)| rmse(&y.values, p))
+        .sum::<f64>()
+        / io.outputs.len().max(1) as f64
 }
 
 /// The loop on one member.
@@ -176,19 +175,7 @@ fn member_loop(dir: &Path, e: &IndexEntry, opts: &LoopOptions) -> Result<MemberL
     })?;
     let effects = plant_effects(&plant);
     let clean = noiseless(dir, e)?;
-    let noise_rms = io
-        .outputs
-        .iter()
-        .zip(&clean)
-        .map(|(y, c)| {
-            rms(&y.values[..n]
-                .iter()
-                .zip(&c[..n])
-                .map(|(a, b)| a - b)
-                .collect::<Vec<f64>>())
-        })
-        .sum::<f64>()
-        / io.outputs.len().max(1) as f64;
+    let noise_rms = mean_over_outputs(&io, &clean);
     let mut out = MemberLoop {
         index: e.index,
         class: e.class,
@@ -233,7 +220,7 @@ fn member_loop(dir: &Path, e: &IndexEntry, opts: &LoopOptions) -> Result<MemberL
                 .map_err(|e| e.to_string())?;
             let first = &ladder.rungs[0];
             let named = first.missing;
-            let candidates = diagnose_candidates(&ladder);
+            let candidates = first.tried.iter().map(|(e, _)| *e).collect();
             let best = ladder
                 .rungs
                 .iter()
@@ -258,16 +245,6 @@ fn member_loop(dir: &Path, e: &IndexEntry, opts: &LoopOptions) -> Result<MemberL
     }
     out.seconds = t0.elapsed().as_secs_f64();
     Ok(out)
-}
-
-/// The candidates the loop refitted at its first step (the diagnosis' best first).
-fn diagnose_candidates(ladder: &crate::improve::Ladder) -> Vec<EffectName> {
-    ladder.rungs[0].tried.iter().map(|(e, _)| *e).collect()
-}
-
-fn median(mut v: Vec<f64>) -> Option<f64> {
-    v.sort_by(f64::total_cmp);
-    (!v.is_empty()).then(|| v[v.len() / 2])
 }
 
 fn summarise(effect: EffectName, members: &[MemberLoop]) -> Option<EffectSummary> {
@@ -351,14 +328,6 @@ pub fn score_loop(
         members,
         seconds: t0.elapsed().as_secs_f64(),
     })
-}
-
-fn share(k: usize, n: usize) -> String {
-    if n == 0 {
-        "-".into()
-    } else {
-        format!("{k} ({:.0} %)", 100.0 * k as f64 / n as f64)
-    }
 }
 
 fn opt(v: Option<f64>) -> String {

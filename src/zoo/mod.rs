@@ -327,3 +327,18 @@ pub(crate) fn noiseless(dir: &Path, e: &IndexEntry) -> Result<Vec<Vec<f64>>, Zoo
         .map_err(|source| ZooError::Simulate { index, source })?;
     Ok(sim.record.outputs.into_iter().map(|s| s.values).collect())
 }
+
+/// The median (upper for an even count) of the values, `None` when there are none.
+pub(crate) fn median(mut v: Vec<f64>) -> Option<f64> {
+    v.sort_by(f64::total_cmp);
+    (!v.is_empty()).then(|| v[v.len() / 2])
+}
+
+/// `k (p %)` of `n` for the reports (`-` when `n` is 0).
+pub(crate) fn share(k: usize, n: usize) -> String {
+    if n == 0 {
+        "-".into()
+    } else {
+        format!("{k} ({:.0} %)", 100.0 * k as f64 / n as f64)
+    }
+}

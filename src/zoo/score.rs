@@ -3,7 +3,7 @@
 //! half of every record and run free on the second; the free-run test R^2 per output, summed up
 //! per class.
 
-use super::{noiseless, Class, IndexEntry, ZooError, ZooIndex};
+use super::{median, noiseless, share, Class, IndexEntry, ZooError, ZooIndex};
 use crate::data::{read_csv, IoRecord};
 use crate::narx::arx::fit_arx;
 use crate::narx::band::coverage;
@@ -243,11 +243,6 @@ fn distribution(r2: &[Option<f64>]) -> Distribution {
     }
 }
 
-fn median(mut v: Vec<f64>) -> Option<f64> {
-    v.sort_by(f64::total_cmp);
-    (!v.is_empty()).then(|| v[v.len() / 2])
-}
-
 fn summarise(class: Class, records: &[RecordScore]) -> Option<ClassSummary> {
     let mine: Vec<&RecordScore> = records.iter().filter(|r| r.class == class).collect();
     if mine.is_empty() {
@@ -306,11 +301,6 @@ fn summarise(class: Class, records: &[RecordScore]) -> Option<ClassSummary> {
         median_seconds: median(mine.iter().map(|r| r.seconds).collect()).unwrap_or(0.0),
         total_seconds: mine.iter().map(|r| r.seconds).sum(),
     })
-}
-
-/// `k (p %)` of `n`.
-fn share(k: usize, n: usize) -> String {
-    format!("{k} ({:.0} %)", 100.0 * k as f64 / n.max(1) as f64)
 }
 
 fn cell(v: Option<f64>) -> String {
