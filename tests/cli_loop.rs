@@ -246,13 +246,17 @@ fn diagnose_and_compare_work_on_a_narx_model() {
         .iter()
         .map(|r| r["effect"].as_str().unwrap())
         .collect();
-    assert_eq!(ranked.len(), 4, "{v}");
-    assert!(
-        ranked.contains(&"hysteresis")
-            && ranked.contains(&"creep")
-            && ranked.contains(&"dynamics")
-            && ranked.contains(&"viscous")
-    );
+    assert_eq!(ranked.len(), 6, "{v}");
+    for e in [
+        "hysteresis",
+        "creep",
+        "dynamics",
+        "viscous",
+        "drift",
+        "saturation",
+    ] {
+        assert!(ranked.contains(&e), "{e}: {v}");
+    }
     let o = run(&["compare", "--data", s(&data), "--model", s(&m), "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();

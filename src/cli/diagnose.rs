@@ -22,6 +22,14 @@ pub struct Args {
     /// Faster on long records.
     #[arg(long)]
     pub no_refit: bool,
+    /// Also draw where each output's residual sits (.png or .svg): against the prediction
+    /// (extremes: saturation), time (a slow trend: drift) and the input's travel since its last
+    /// reversal (backlash, friction), with the part each place explains.
+    #[arg(long)]
+    pub figure: Option<PathBuf>,
+    /// Replace an existing figure file.
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// The diagnosis in words.
@@ -44,6 +52,9 @@ pub fn text(d: &Diagnosis) -> String {
         } else {
             format!("  residual correlation tests failed: {}\n", sig.join(", "))
         };
+        if !sig.is_empty() {
+            s += &format!("  where: {}\n", od.residual.message);
+        }
     }
     s += "ranking (share of the residual explained out of sample):\n";
     for r in &d.ranking {
@@ -65,6 +76,11 @@ pub fn text(d: &Diagnosis) -> String {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    if let Some(f) = &a.figure {
+        // refuse before the work: a wrong extension, or a file that is there without --force
+        hystbench::plot::Format::from_path(f)?;
+        hystbench::data::check_writable(f, a.force)?;
+    }
     let model = load_model(&a.model)?;
     let (io, pred) = predict_record(&a.data, model.as_ref())?;
     let mut opts = DiagnoseOptions::default();
@@ -76,10 +92,25 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         Ok(config) if opts.refit.is_some() => diagnose_model(&io, &pred, &config, &opts),
         _ => diagnose(&io, &pred, &model.effects(), &opts),
     };
+    if let Some(f) = &a.figure {
+        let label = a
+            .data
+            .file_name()
+            .map_or(String::new(), |n| n.to_string_lossy().into_owned());
+        let mut rec = hystbench::plot::PlotRecord::from_io(label, io.clone());
+        for (j, p) in pred.iter().enumerate() {
+            rec = rec.with_prediction(j, p.clone())?;
+        }
+        let shapes = d.outputs.iter().map(|o| o.residual.clone()).collect();
+        hystbench::plot::residual_where_figure(&rec, shapes, None, f, None, a.force)?;
+    }
     if a.json {
         crate::cli::print(&serde_json::to_string(&d)?);
     } else {
         crate::cli::print(&text(&d));
+        if let Some(f) = &a.figure {
+            crate::cli::print(&format!("wrote {}", f.display()));
+        }
     }
     Ok(())
 }

@@ -17,6 +17,8 @@ fn place(slot: Slot) -> &'static str {
         Slot::PathTerm => "path term",
         Slot::Filter => "path or output filter",
         Slot::OutputFilter => "output filter",
+        Slot::OutputTerm => "output term (of time)",
+        Slot::Sensor => "sensor (after the offset)",
         Slot::None => "structure",
     }
 }

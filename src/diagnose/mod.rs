@@ -24,6 +24,7 @@
 pub mod compare;
 pub mod refit;
 pub mod regression;
+pub mod residual;
 pub mod whiteness;
 
 use crate::data::IoRecord;
@@ -85,6 +86,8 @@ pub struct OutputDiagnosis {
     /// Every effect the model lacks that passes the test on this output, best first.
     pub candidates: Vec<EffectName>,
     pub messages: Vec<String>,
+    /// Where the residual concentrates (extremes, slow trend, reversals), when it is not white.
+    pub residual: residual::ResidualShape,
 }
 
 /// One line of the ranking over all outputs.
@@ -216,9 +219,15 @@ fn add_it(model_effects: &[EffectName], m: EffectName) -> String {
         .chain(std::iter::once(&m))
         .map(|e| e.as_str())
         .collect();
+    let narx = registry::effect(m).is_some_and(|e| !e.feature_kinds().is_empty());
     format!(
-        "add it: hystbench fit --effects {} (grey-box), or hystbench identify --features {m} (NARX); hystbench improve does the loop",
-        with.join(",")
+        "add it: hystbench fit --effects {} (grey-box){}; hystbench improve does the loop",
+        with.join(","),
+        if narx {
+            format!(", or hystbench identify --features {m} (NARX)")
+        } else {
+            String::new()
+        }
     )
 }
 
@@ -271,9 +280,20 @@ fn refit_summary(check: &RefitCheck, d: &Diagnosis, model_effects: &[EffectName]
             } else {
                 "nothing significant is missing from the library's effects: none of them, refitted, cuts the held-out error significantly; the residual is not white, so what is left is noise, a misfit of the effects the model has, or an effect the library lacks".to_string()
             });
+            s.extend(where_left(&d.outputs));
         }
     }
     s
+}
+
+/// Where each output's residual concentrates, when it is not white (what is left when no
+/// effect is named).
+fn where_left(outputs: &[OutputDiagnosis]) -> Vec<String> {
+    outputs
+        .iter()
+        .filter(|o| !o.whiteness.white)
+        .map(|o| format!("{}: {}", o.output, o.residual.message))
+        .collect()
 }
 
 /// The banks of every effect for one output (none for a record without inputs).
@@ -391,6 +411,10 @@ fn diagnose_output(
     }
     let scores = score_banks(&e, yhat, &banks, &baseline, model_effects);
     let w = whiteness(&e, &named, opts.max_lag);
+    let shape = match inputs.get(direct) {
+        Some(u) => residual::describe(&e, yhat, u, w.white),
+        None => residual::describe(&e, yhat, &[], w.white),
+    };
     let mut candidates: Vec<EffectName> = scores
         .iter()
         .filter(|s| !s.in_model && !w.white && s.explained >= opts.threshold)
@@ -438,6 +462,7 @@ fn diagnose_output(
         missing,
         candidates,
         messages,
+        residual: shape,
     }
 }
 
@@ -508,6 +533,7 @@ fn summary(
             } else {
                 "nothing significant is missing from the library's effects: no effect the model lacks explains enough of the residual (what is left is noise or a misfit of the effects it has)".to_string()
             });
+            summary.extend(where_left(outputs));
         }
     }
     summary

@@ -218,3 +218,39 @@ pub struct RecordView<'a> {
     /// See [`OutputSetup::parsimonious`].
     pub parsimonious: bool,
 }
+
+/// Where a sensor hides the model's value: samples at or beyond a limit are censored (the
+/// measurement says only that the value is at least `upper`, or at most `lower`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Censoring {
+    pub lower: Option<f64>,
+    pub upper: Option<f64>,
+    /// A sample within this distance of a limit is taken as censored (the noise on it).
+    pub tolerance: f64,
+}
+
+impl Censoring {
+    /// Is measured value `y` censored?
+    pub fn censored(&self, y: f64) -> bool {
+        self.upper.is_some_and(|h| y >= h - self.tolerance)
+            || self.lower.is_some_and(|l| y <= l + self.tolerance)
+    }
+
+    /// Is the model's value `model` on the far side of the limit that censors `y`?
+    pub fn beyond(&self, y: f64, model: f64) -> bool {
+        match (self.upper, self.lower) {
+            (Some(h), _) if y >= h - self.tolerance => model >= h,
+            (_, Some(l)) if y <= l + self.tolerance => model <= l,
+            _ => false,
+        }
+    }
+}
+
+/// A sensor's static map of the measured output (after the offset): what it hides and its
+/// fitted spec. The fitter leaves the censored samples out and puts the sensor on the output.
+pub trait SensorFit: Send + Sync {
+    /// The limits that the measured output `y` (training samples) shows.
+    fn censoring(&self, y: &[f64]) -> Censoring;
+    /// The fitted sensor as a plant-file spec.
+    fn spec(&self, c: &Censoring) -> Box<dyn EffectSpec>;
+}

@@ -6,7 +6,9 @@
 
 use super::feature::{FeatureKind, FeatureSpec};
 use super::traits::Effect;
-use super::{coupling, creep, dynamics, hysteresis, viscous, EffectError, EffectName};
+use super::{
+    coupling, creep, drift, dynamics, hysteresis, saturation, viscous, EffectError, EffectName,
+};
 use std::sync::RwLock;
 
 /// The library's effects, in chain order: one line each.
@@ -16,6 +18,8 @@ static BUILTIN: &[&dyn Effect] = &[
     &dynamics::DynamicsEffect,
     &coupling::CouplingEffect,
     &viscous::ViscousEffect,
+    &drift::DriftEffect,
+    &saturation::SaturationEffect,
 ];
 
 /// Effects registered at run time, after the built-in ones.

@@ -10,7 +10,7 @@ use super::basis::{BasisBank, BasisContext, EvidenceContext};
 use super::draw::{Dice, DrawContext};
 use super::feature::{FeatureKind, FeatureSpec};
 use super::fitting::{
-    FilterFit, OutputSetup, PathSetup, RecordError, RecordView, TermFit, Variant,
+    FilterFit, OutputSetup, PathSetup, RecordError, RecordView, SensorFit, TermFit, Variant,
 };
 use super::spec::EffectSpec;
 use super::EffectName;
@@ -24,6 +24,10 @@ pub enum Slot {
     Filter,
     /// In an output only, filtering the sum of the paths (creep).
     OutputFilter,
+    /// In an output, added after its filters: a signal of time, not of the input (drift).
+    OutputTerm,
+    /// In an output, a static map of the measured signal after the offset (saturation).
+    Sensor,
     /// Nowhere: the effect is a structure of the plant (coupling: cross paths).
     None,
 }
@@ -124,6 +128,14 @@ pub trait Effect: Send + Sync + 'static {
     }
     /// The filter this effect adds to an output.
     fn filter(&self, _setup: &OutputSetup) -> Option<Box<dyn FilterFit>> {
+        None
+    }
+    /// The columns this effect adds to an output after its filters (an output term: drift).
+    fn output_term(&self, _setup: &OutputSetup) -> Option<Box<dyn TermFit>> {
+        None
+    }
+    /// The sensor this effect puts on an output (saturation).
+    fn sensor(&self) -> Option<Box<dyn SensorFit>> {
         None
     }
     /// The spec of a path without this effect (required effects: a linear gain).

@@ -82,14 +82,18 @@ impl GreyBoxConfig {
                 })
             }
         };
-        let (terms, filters) = chosen
-            .into_iter()
-            .filter(|c| c.effect.slot() != Slot::None)
-            .partition(|c| c.effect.slot() == Slot::PathTerm);
+        let of = |slots: &[Slot]| -> Vec<Chosen> {
+            chosen
+                .iter()
+                .filter(|c| slots.contains(&c.effect.slot()))
+                .copied()
+                .collect()
+        };
         Ok(OutputStructure {
             paths,
-            terms,
-            filters,
+            terms: of(&[Slot::PathTerm]),
+            filters: of(&[Slot::Filter, Slot::OutputFilter]),
+            output_terms: of(&[Slot::OutputTerm]),
             previous: Vec::new(),
             parsimonious: self.options.parsimonious_creep,
         })
@@ -279,8 +283,10 @@ impl GreyBoxConfig {
         model.fit.seconds = start.elapsed().as_secs_f64();
         Ok(model)
     }
-    /// Fit output `o` of the training record: its problem, the warm starts of the variants that
-    /// name one, the two-stage Levenberg-Marquardt; the fitted output spec and the run.
+    /// Fit output `o` of the training record; with a sensor (saturation), the samples at its
+    /// limits are left out of the fit where the model is beyond the limit (there the
+    /// measurement only bounds the model's value: the censored samples of a Tobit model), in
+    /// [`SENSOR_ROUNDS`] refits from "all of them out", and the sensor is put on the output.
     fn fit_output(
         &self,
         train: &IoRecord,
@@ -288,11 +294,51 @@ impl GreyBoxConfig {
         u: &[&[f64]],
         names: &[String],
     ) -> Result<(crate::plant::OutputSpec, LmResult), GreyBoxError> {
+        let y = &train.outputs[o].values;
+        let Some(sensor) = self
+            .chosen()
+            .iter()
+            .filter(|c| c.effect.slot() == Slot::Sensor)
+            .find_map(|c| c.effect.sensor())
+        else {
+            return self.fit_output_values(train, o, None, u, names);
+        };
+        let censoring = sensor.censoring(y);
+        let censored: Vec<bool> = y.iter().map(|&v| censoring.censored(v)).collect();
+        let mut fitted = self.fit_output_values(train, o, Some(&censored), u, names)?;
+        for _ in 0..SENSOR_ROUNDS {
+            // a censored sample where the model stays inside the limit is a misfit: it
+            // enters the next fit with its measured value (at the limit)
+            let Some(model) = simulate_output(&fitted.0, names, u, train.ts) else {
+                break;
+            };
+            let mask: Vec<bool> = censored
+                .iter()
+                .zip(y.iter().zip(&model))
+                .map(|(&c, (&v, &m))| c && censoring.beyond(v, m))
+                .collect();
+            fitted = self.fit_output_values(train, o, Some(&mask), u, names)?;
+        }
+        fitted.0.effects.push(sensor.spec(&censoring));
+        Ok(fitted)
+    }
+
+    /// Fit output `o` of the training record without the samples `excluded` marks: its
+    /// problem, the warm starts of the variants that name one, the two-stage
+    /// Levenberg-Marquardt; the fitted output spec and the run.
+    fn fit_output_values(
+        &self,
+        train: &IoRecord,
+        o: usize,
+        excluded: Option<&Vec<bool>>,
+        u: &[&[f64]],
+        names: &[String],
+    ) -> Result<(crate::plant::OutputSpec, LmResult), GreyBoxError> {
         let out = &train.outputs[o];
         let st = self.structure(train, o)?;
         let t0 = Instant::now();
         let problem = |st: &OutputStructure, plays: usize| {
-            OutputProblem::new(
+            let p = OutputProblem::new(
                 &out.name,
                 &out.values,
                 u.to_vec(),
@@ -302,7 +348,11 @@ impl GreyBoxConfig {
                 plays,
                 self.options.held_out.clone(),
             )
-            .with_ridge(self.options.ridge)
+            .with_ridge(self.options.ridge);
+            match excluded {
+                Some(m) => p.with_excluded(m.clone()),
+                None => p,
+            }
         };
         let prob = problem(&st, self.options.plays);
         // a variant that names a warm start also starts from the fit with that (simpler)
@@ -448,6 +498,32 @@ impl GreyBoxConfig {
         }
         best
     }
+}
+
+/// Refits of a model with a sensor after the first (the censored samples where the model
+/// stays inside the limit rejoin the fit).
+pub const SENSOR_ROUNDS: usize = 2;
+
+/// One fitted output (without its sensor) run over the inputs `u`; `None` when it does not
+/// run (invalid parameters, divergence).
+fn simulate_output(
+    spec: &crate::plant::OutputSpec,
+    names: &[String],
+    u: &[&[f64]],
+    ts: f64,
+) -> Option<Vec<f64>> {
+    let plant = PlantSpec {
+        name: "output".into(),
+        description: String::new(),
+        units: Units::default(),
+        default_scenario: None,
+        inputs: names.to_vec(),
+        outputs: vec![spec.clone()],
+        ode: None,
+    }
+    .check(std::path::Path::new("fitted output"))
+    .ok()?;
+    plant.simulate(u, ts).ok()?.pop()
 }
 
 /// The second stage replaces the first when it lowers the fitted cost (sum of squares) below

@@ -54,10 +54,14 @@ struct PlacedFilter {
 }
 
 /// Where every column and parameter of one output's model is. Columns: per path, the gain
-/// column then each term's columns; the constant (offset) last. Parameters: the filters' from
+/// column then each term's columns; the output terms' columns; the constant (offset) last. Parameters: the filters' from
 /// the output back (the last filter of the chain first), then each path's terms in order.
 struct Layout<'a> {
     paths: Vec<FitPath<'a>>,
+    /// Terms added to the output after its filters (drift), their columns after the paths'.
+    output_terms: Vec<PlacedTerm<'a>>,
+    /// The first column that the filters do not act on (output terms, then the constant).
+    unfiltered: usize,
     /// In chain order.
     filters: Vec<PlacedFilter>,
     n_cols: usize,
@@ -73,6 +77,9 @@ pub(crate) struct OutputProblem<'a> {
     /// zero): the model still runs through them, so that a held-out block inside the record
     /// scores it as a free run (blocked cross-validation).
     held_out: Option<Range<usize>>,
+    /// Samples the fit also leaves out, wherever they are (a sensor's censored samples: the
+    /// measurement there only bounds the model's value).
+    excluded: Option<Vec<bool>>,
     /// Relative ridge on the terms' coefficients (not the path gains nor the offset):
     /// lambda * ||psi_i||^2 * c_i^2 is added to the cost, shrinking a path toward its linear
     /// gain; 0 = none.
@@ -107,6 +114,8 @@ pub(crate) struct OutputStructure {
     pub paths: Vec<usize>,
     pub terms: Vec<Chosen>,
     pub filters: Vec<Chosen>,
+    /// Effects that add columns to the output after its filters (drift).
+    pub output_terms: Vec<Chosen>,
     /// Per path, its first-stage fit in the second stage of a two-stage fit (empty: none).
     pub previous: Vec<Option<crate::effect::fitting::PreviousPath>>,
     /// [`crate::effect::fitting::OutputSetup::parsimonious`].
@@ -251,6 +260,20 @@ impl<'a> OutputProblem<'a> {
                 terms,
             });
         }
+        let unfiltered = n_cols;
+        let mut output_terms = Vec::new();
+        for c in &structure.output_terms {
+            if let Some(term) = c.effect.output_term(&setup(c.variant)) {
+                let (nc, np) = (term.n_columns(), term.n_params());
+                output_terms.push(PlacedTerm {
+                    term,
+                    cols: n_cols..n_cols + nc,
+                    params: n_theta..n_theta + np,
+                });
+                n_cols += nc;
+                n_theta += np;
+            }
+        }
         let chosen: Vec<_> = structure.terms.iter().map(|c| c.effect.name()).collect();
         let required = crate::effect::effects()
             .into_iter()
@@ -260,11 +283,14 @@ impl<'a> OutputProblem<'a> {
             name: name.to_string(),
             y,
             held_out,
+            excluded: None,
             ridge: 0.0,
             u,
             input_names,
             layout: Layout {
                 paths,
+                output_terms,
+                unfiltered,
                 filters,
                 n_cols: n_cols + 1,
                 n_theta,
@@ -275,6 +301,20 @@ impl<'a> OutputProblem<'a> {
 
     pub fn n_theta(&self) -> usize {
         self.layout.n_theta
+    }
+
+    /// The same problem without the samples marked in `mask` (their rows of the basis, of the
+    /// Jacobian and of `y` are zero; the model still runs through them).
+    pub fn with_excluded(mut self, mask: Vec<bool>) -> Self {
+        let mut y = self.y.into_owned();
+        for (v, &m) in y.iter_mut().zip(&mask) {
+            if m {
+                *v = 0.0;
+            }
+        }
+        self.y = Cow::Owned(y);
+        self.excluded = Some(mask);
+        self
     }
 
     /// The same problem with a relative ridge `lambda` on the terms' coefficients.
@@ -299,12 +339,12 @@ impl<'a> OutputProblem<'a> {
     fn filtered_basis(&self, th: &[f64], with_dynamics: bool) -> (Vec<Vec<f64>>, Vec<bool>) {
         let (phi, cons) = self.basis(th);
         let prepared = self.prepared(th, with_dynamics);
-        let last = phi.len() - 1;
+        let unfiltered = self.layout.unfiltered;
         let psi = phi
             .par_iter()
             .enumerate()
             .map(|(k, col)| {
-                let mut c = if k == last {
+                let mut c = if k >= unfiltered {
                     col.to_vec()
                 } else {
                     apply_chain(&prepared, col)
@@ -352,7 +392,10 @@ impl<'a> OutputProblem<'a> {
                         g[(i, i)] *= 1.0 + lambda;
                     }
                     let coef = nnls_gram(&g, &(&b_all - bb), &cons).coef;
-                    for k in block.clone().filter(|k| !held.contains(k)) {
+                    let skip = |k: &usize| {
+                        held.contains(k) || self.excluded.as_ref().is_some_and(|m| m[*k])
+                    };
+                    for k in block.clone().filter(|k| !skip(k)) {
                         let fit: f64 = (0..m).map(|i| coef[i] * psi[i][k]).sum();
                         e.push(self.y[k] - fit);
                     }
@@ -367,6 +410,13 @@ impl<'a> OutputProblem<'a> {
     fn hold_out(&self, c: &mut [f64]) {
         if let Some(r) = &self.held_out {
             c[r.clone()].fill(0.0);
+        }
+        if let Some(m) = &self.excluded {
+            for (v, &x) in c.iter_mut().zip(m) {
+                if x {
+                    *v = 0.0;
+                }
+            }
         }
     }
 
@@ -393,6 +443,12 @@ impl<'a> OutputProblem<'a> {
                     cols.push(c);
                     cons.push(nonneg);
                 }
+            }
+        }
+        for t in &self.layout.output_terms {
+            for (c, nonneg) in t.term.columns(&th[t.params.clone()]) {
+                cols.push(c);
+                cons.push(nonneg);
             }
         }
         cols.push(Cow::Owned(vec![1.0; self.y.len()]));
@@ -497,10 +553,15 @@ impl<'a> OutputProblem<'a> {
     pub(crate) fn output_at(&self, th: &[f64], coef: &[f64]) -> Vec<f64> {
         let (phi, _) = self.basis(th);
         let prepared = self.prepared(th, true);
-        let last = phi.len() - 1;
-        let mut out = vec![coef[last]; self.y.len()];
-        for (col, &c) in phi[..last].iter().zip(coef) {
-            for (o, v) in out.iter_mut().zip(apply_chain(&prepared, col)) {
+        let f = self.layout.unfiltered;
+        let mut out = vec![0.0; self.y.len()];
+        for (k, (col, &c)) in phi.iter().zip(coef).enumerate() {
+            let v = if k < f {
+                apply_chain(&prepared, col)
+            } else {
+                col.to_vec()
+            };
+            for (o, v) in out.iter_mut().zip(v) {
                 *o += c * v;
             }
         }
@@ -515,7 +576,7 @@ impl<'a> OutputProblem<'a> {
         let prepared = self.prepared(th, true);
         // the unfiltered sum of the paths
         let mut w = vec![0.0; n];
-        let last = phi.len() - 1;
+        let last = self.layout.unfiltered;
         for (col, &c) in phi[..last].iter().zip(&coef[..last]) {
             if c != 0.0 {
                 for (wv, v) in w.iter_mut().zip(col.iter()) {
@@ -554,6 +615,19 @@ impl<'a> OutputProblem<'a> {
                         (t.params.start + q, apply_chain_owned(prepared, d))
                     }));
                 }
+            }
+        }
+        for t in &self.layout.output_terms {
+            // after the filters: its derivative as it is
+            let cols: Vec<&[f64]> = phi[t.cols.clone()].iter().map(|c| c.as_ref()).collect();
+            let cols = std::sync::Arc::new(cols);
+            for q in 0..t.params.len() {
+                let cols = cols.clone();
+                let coef = &coef[t.cols.clone()];
+                jobs.push(Box::new(move || {
+                    let d = t.term.derivative(&th[t.params.clone()], q, &cols, coef);
+                    (t.params.start + q, d)
+                }));
             }
         }
         jobs.par_iter().map(|f| f()).collect()
@@ -674,6 +748,11 @@ impl<'a> OutputProblem<'a> {
                 .filters
                 .iter()
                 .map(|f| f.filter.spec(&th[f.params.clone()]))
+                .chain(self.layout.output_terms.iter().filter_map(|t| {
+                    t.term
+                        .spec(&th[t.params.clone()], 0.0, &coef[t.cols.clone()])
+                        .spec
+                }))
                 .collect(),
         }
     }

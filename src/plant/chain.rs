@@ -1,10 +1,11 @@
 //! Simulation of chain plants: paths (terms such as hysteresis + viscous, then path filters such
-//! as dynamics) -> sum -> output filters (creep, dynamics) -> + offset, per output; each
+//! as dynamics) -> sum -> output filters and terms (creep, dynamics, drift) -> + offset -> sensor
+//! (saturation), per output; each
 //! operator runs over the whole signal at once.
 
 use super::{OdePlant, OutputChain, Plant, PlantError, PlantKind};
 use crate::effect::spec::BoxedOperator;
-use crate::effect::{EffectError, EffectParams};
+use crate::effect::{registry, EffectError, EffectParams, Slot};
 
 fn effect_err(plant: &Plant, field: String, source: EffectError) -> PlantError {
     PlantError::Effect {
@@ -69,10 +70,19 @@ impl OutputChain {
                 *a += b;
             }
         }
-        for f in filters.iter_mut() {
+        // the output's filters and terms (creep, dynamics, drift), the offset, then the sensor
+        let sensor: Vec<bool> = self
+            .filters
+            .iter()
+            .map(|e| registry::effect(e.effect()).map(|x| x.slot()) == Some(Slot::Sensor))
+            .collect();
+        for (f, _) in filters.iter_mut().zip(&sensor).filter(|(_, s)| !**s) {
             w = f.apply(&w);
         }
-        let out: Vec<f64> = w.into_iter().map(|v| v + self.offset).collect();
+        let mut out: Vec<f64> = w.into_iter().map(|v| v + self.offset).collect();
+        for (f, _) in filters.iter_mut().zip(&sensor).filter(|(_, s)| **s) {
+            out = f.apply(&out);
+        }
         if let Some((sample, &value)) = out.iter().enumerate().find(|(_, v)| !v.is_finite()) {
             return Err(PlantError::Diverged {
                 output: self.name.clone(),

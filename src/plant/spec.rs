@@ -184,7 +184,7 @@ fn effect_of_key<E: serde::de::Error>(
     let fits = |e: &&'static dyn Effect| match e.slot() {
         Slot::PathTerm => in_path,
         Slot::Filter => true,
-        Slot::OutputFilter => !in_path,
+        Slot::OutputFilter | Slot::OutputTerm | Slot::Sensor => !in_path,
         Slot::None => false,
     };
     let mut all: Vec<&'static dyn Effect> = registry::effects().into_iter().filter(fits).collect();
@@ -508,7 +508,7 @@ impl PlantSpec {
             refuse_repeated(file, &at, &out.effects[..i], name)?;
             if !matches!(
                 registry::effect(name).map(|e| e.slot()),
-                Some(Slot::Filter | Slot::OutputFilter)
+                Some(Slot::Filter | Slot::OutputFilter | Slot::OutputTerm | Slot::Sensor)
             ) {
                 return Err(structure_error(
                     file,
