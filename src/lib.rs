@@ -3,7 +3,8 @@
 //! Simulate, identify, plot and improve models of hysteretic actuators: piezoelectric stacks,
 //! benders and 2-DoF micromanipulators, MR dampers and other hysteretic devices.
 //!
-//! - [`effect`]: the effect library (hysteresis, creep, dynamics, coupling, viscous), one file
+//! - [`effect`]: the effect library (hysteresis, creep, dynamics, coupling, viscous, drift,
+//!   saturation), one file
 //!   per effect and one registry, shared by simulation, grey-box fitting, diagnosis and NARX
 //!   features;
 //! - [`plant`]: plant specs (`plants/*.json`), their composition and the ODE plants;
@@ -13,6 +14,7 @@
 //! - [`graybox`]: grey-box models, compositions of the effects fitted to a record;
 //! - [`diagnose`]: where a model fails and which effect it misses;
 //! - [`improve`]: the model-improvement loop (diagnose, add the effect, refit, repeat);
+//! - [`compensate`]: inverse compensation, the input that makes a model follow a reference;
 //! - [`model`]: any model (plant, grey-box, NARX) behind one trait;
 //! - [`plot`]: figures (PNG, SVG): loops, time, residual loops, parity, spectra, sweeps, ladder;
 //! - [`data`]: records, CSV in and out, atomic writes;
@@ -24,6 +26,7 @@
 //! this library (`docs/library.md`, `examples/simulate_and_fit.rs`).
 
 pub mod benchmark;
+pub mod compensate;
 pub mod data;
 pub mod diagnose;
 pub mod effect;

@@ -208,7 +208,15 @@ fn demo_runs_the_whole_story() {
     assert!(
         out.join("records/bouc_wen_piezo_loop.png").exists()
             && out.join("improve/ladder.png").exists()
+            && out.join("compensation/loop.png").exists()
     );
+    // the compensation step: the improved model's inverse cuts the tracking error
+    let t: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("compensation/track.json")).unwrap(),
+    )
+    .unwrap();
+    let ratio = t["outputs"][0]["ratio"].as_f64().unwrap();
+    assert!(md.contains("Compensation") && ratio >= 5.0, "{t}");
 }
 
 #[test]

@@ -66,6 +66,7 @@ impl Spec for ElectrostrictionSpec {
 }
 
 /// The sampled operator: memoryless, c u(k)^2.
+#[derive(Clone)]
 struct Square {
     c: f64,
 }

@@ -54,6 +54,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     simulate_plants(&records, &mut md)?;
     identify_records(&records, &mut md)?;
     hidden_effect(&a.out, &records, &mut md)?;
+    compensation(&a.out, &mut md)?;
     let _ = writeln!(
         md,
         "\nMade by `hystbench demo` {} in {:.1} s.",
@@ -183,5 +184,79 @@ fn hidden_effect(out: &Path, records: &Path, md: &mut String) -> anyhow::Result<
         .collect();
     *md += &table;
     *md += "\n![ladder](improve/ladder.png)\n\nFull report: `improve/report.md`.\n";
+    Ok(())
+}
+
+/// Step 4, compensation: the model `improve` ended with, inverted; the plant (the ground
+/// truth) driven with and without it along a reference the record did not contain.
+fn compensation(out: &Path, md: &mut String) -> anyhow::Result<()> {
+    eprintln!("4. compensation: the improved model's inverse drives the plant along a reference");
+    *md += "\n## 4. Compensation: the model inverted, the loop flattened\n\n";
+    let dir = out.join("compensation");
+    std::fs::create_dir_all(&dir)?;
+    // the plant that made the hidden-effect record, as a file for `track`
+    let (file, json, _, _) = BUILTIN
+        .iter()
+        .find(|(f, ..)| f.starts_with("hidden_creep_piezo"))
+        .ok_or_else(|| anyhow::anyhow!("the hidden-effect plant is not built in"))?;
+    let plant_file = dir.join(file);
+    hystbench::data::write_atomic(&plant_file, json.as_bytes(), true)?;
+    let plant = PlantSpec::parse(&plant_file, json)?.check(&plant_file)?;
+    // the last model of the improvement loop
+    let model = (1..=9)
+        .rev()
+        .map(|k| out.join("improve").join(format!("model_{k}.json")))
+        .find(|p| p.exists())
+        .unwrap_or_else(|| out.join("hidden_start_model.json"));
+    let ts = hystbench::graybox::FittedGreyBox::load(&model)?
+        .fit
+        .sampling_period_s;
+    // 2 s of two sines and a 5 Hz triangle, from rest
+    let n = (2.0 / ts).round() as usize;
+    let mut csv = format!("t,{}\n", plant.outputs[0]);
+    for k in 0..n {
+        let t = k as f64 * ts;
+        let ramp = 0.5 - 0.5 * (std::f64::consts::PI * (t / 0.2).min(1.0)).cos();
+        let tri = 1.0 - 2.0 * (2.0 * (t * 5.0).fract() - 1.0).abs();
+        let r = ramp
+            * (12.0 * (2.0 * std::f64::consts::PI * 1.5 * t).sin()
+                + 4.0 * (2.0 * std::f64::consts::PI * 11.0 * t).sin()
+                + 3.0 * tri);
+        let _ = writeln!(csv, "{t},{r}");
+    }
+    let reference = dir.join("reference.csv");
+    hystbench::data::write_atomic(&reference, csv.as_bytes(), true)?;
+    crate::cli::track::execute(&crate::cli::track::Args {
+        plant: plant_file,
+        model: model.clone(),
+        reference,
+        columns: None,
+        limits: None,
+        out: dir.clone(),
+        force: true,
+        json: true,
+    })?;
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("track.json"))?)?;
+    let _ = writeln!(
+        md,
+        "The model `improve` ended with (`{}`) is inverted sample by sample (`hystbench compensate`), and the plant that made the record is driven along a reference it never saw (`compensation/reference.csv`: 2 s of 1.5 Hz and 11 Hz sines and a 5 Hz triangle), with the compensating input and, for comparison, with the reference divided by the model's static gain (`hystbench track`):\n",
+        model.file_name().map_or(String::new(), |f| f.to_string_lossy().into_owned())
+    );
+    *md += "| output | uncompensated RMS | compensated RMS | % of the range | smaller by |\n|---|---|---|---|---|\n";
+    for o in v["outputs"].as_array().into_iter().flatten() {
+        let f = |k: &str, m: &str| o[k][m].as_f64().unwrap_or(f64::NAN);
+        let _ = writeln!(
+            md,
+            "| {} | {:.4} | {:.4} | {:.2} % -> {:.3} % | {:.1}x |",
+            o["output"].as_str().unwrap_or(""),
+            f("uncompensated", "rms"),
+            f("compensated", "rms"),
+            f("uncompensated", "rms_percent"),
+            f("compensated", "rms_percent"),
+            o["ratio"].as_f64().unwrap_or(f64::NAN)
+        );
+    }
+    *md += "\n![output against reference](compensation/loop.png)\n\nFigures and `track.json`: `compensation/`.\n";
     Ok(())
 }

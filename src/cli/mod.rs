@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 pub mod benchmark;
 pub mod benchmark_mr;
 pub mod compare;
+pub mod compensate;
 pub mod demo;
 pub mod diagnose;
 pub mod effects;
@@ -19,6 +20,7 @@ pub mod predict;
 pub mod simulate;
 pub mod split;
 pub mod sweep;
+pub mod track;
 pub mod zoo;
 
 /// Simulate, identify, plot and improve models of hysteretic actuators.
@@ -50,6 +52,10 @@ pub enum Command {
     Diagnose(diagnose::Args),
     /// Diagnose, add the missing effect, refit, repeat: the ladder of errors.
     Improve(improve::Args),
+    /// The feedforward input that makes a model (plant file or grey-box) follow a reference.
+    Compensate(compensate::Args),
+    /// Drive a plant with and without a model's compensator and compare the tracking errors.
+    Track(track::Args),
     /// Draw a figure (PNG or SVG): loop, time, residual-loop, parity, spectrum, sweep, ladder.
     Plot(plot::PlotArgs),
     /// Score the NARX and grey-box models on a benchmark (Bouc-Wen; measured MR damper).
@@ -113,6 +119,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Plot(a) => plot::run(a),
         Command::Benchmark(a) => benchmark::run(a),
         Command::Split(a) => split::run(a),
+        Command::Compensate(a) => compensate::run(a),
+        Command::Track(a) => track::run(a),
         Command::Effects(a) => effects::run(a),
         Command::Zoo(a) => zoo::run(a),
     }

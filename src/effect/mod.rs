@@ -61,8 +61,9 @@ pub use traits::{Effect, Slot, StructureView};
 
 /// A sampled operator on one signal with internal state (play states, filter states…).
 ///
-/// `step` takes the input at sample k and returns the output at sample k.
-pub trait Operator {
+/// `step` takes the input at sample k and returns the output at sample k. An operator is
+/// `Clone` (its state copied: the compensator tries inputs on a copy of the plant).
+pub trait Operator: OperatorClone {
     /// Back to the initial state.
     fn reset(&mut self);
     /// One sample.
@@ -70,6 +71,23 @@ pub trait Operator {
     /// A whole signal from the current state.
     fn apply(&mut self, x: &[f64]) -> Vec<f64> {
         x.iter().map(|&v| self.step(v)).collect()
+    }
+}
+
+/// A copy of an operator behind a box (implemented for every `Clone` operator).
+pub trait OperatorClone {
+    fn clone_boxed(&self) -> spec::BoxedOperator;
+}
+
+impl<T: Operator + Clone + Send + 'static> OperatorClone for T {
+    fn clone_boxed(&self) -> spec::BoxedOperator {
+        Box::new(self.clone())
+    }
+}
+
+impl Clone for spec::BoxedOperator {
+    fn clone(&self) -> Self {
+        self.clone_boxed()
     }
 }
 

@@ -17,9 +17,11 @@ mod chain;
 mod error;
 pub mod ode;
 mod spec;
+mod state;
 
 pub use error::PlantError;
 pub use spec::{
     EffectSpecs, OdePlant, OdeSpec, OutputChain, OutputSpec, PathParams, PathSpec, Plant,
     PlantKind, PlantSpec, Units,
 };
+pub use state::PlantState;

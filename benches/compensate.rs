@@ -1,0 +1,45 @@
+//! `compensate` speed: samples per second of the inverse of each shipped 1-DoF plant and of the
+//! 2-DoF cantilever, on one thread (goal of the compensation issue: 1 million samples/s for a
+//! grey-box model; a real-time loop at 10 kHz needs 10,000). Run: `cargo bench --bench compensate`.
+
+use hystbench::compensate::{compensate, CompensateOptions};
+use hystbench::plant::PlantSpec;
+use std::path::Path;
+use std::time::Instant;
+
+fn main() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let ts = 1e-4;
+    let n = 100_000;
+    let r = |phase: f64| -> Vec<f64> {
+        (0..n)
+            .map(|k| {
+                let t = k as f64 * ts;
+                let ramp = 0.5 - 0.5 * (std::f64::consts::PI * (t / 0.2).min(1.0)).cos();
+                ramp * (15.0 * (2.0 * std::f64::consts::PI * 2.0 * t + phase).sin()
+                    + 5.0 * (2.0 * std::f64::consts::PI * 13.0 * t).sin())
+            })
+            .collect()
+    };
+    println!("| plant | samples | seconds | samples/s |\n|---|---|---|---|");
+    for name in [
+        "prandtl_ishlinskii_piezo.json",
+        "prandtl_ishlinskii_asymmetric.json",
+        "bouc_wen_piezo.json",
+        "hidden_creep_piezo.json",
+        "piezo_2dof.json",
+    ] {
+        let path = root.join("plants").join(name);
+        let plant = PlantSpec::read(&path).unwrap().check(&path).unwrap();
+        let refs: Vec<Vec<f64>> = (0..plant.outputs.len()).map(|o| r(o as f64)).collect();
+        let rr: Vec<&[f64]> = refs.iter().map(Vec::as_slice).collect();
+        let mut best = f64::MAX;
+        for _ in 0..3 {
+            let t0 = Instant::now();
+            let c = compensate(&plant, &rr, ts, &CompensateOptions::default()).unwrap();
+            best = best.min(t0.elapsed().as_secs_f64());
+            assert_eq!(c.inputs[0].len(), n);
+        }
+        println!("| {name} | {n} | {best:.3} | {:.0} |", n as f64 / best);
+    }
+}

@@ -1,0 +1,223 @@
+//! `hystbench compensate`: the input that makes a model follow a reference.
+
+use hystbench::compensate::{compensate, CompensateOptions, Compensation};
+use hystbench::data::{read_csv, write_csv_atomic};
+use hystbench::plant::Plant;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Compute the feedforward input that makes a model's output follow a reference.
+#[derive(Debug, clap::Args)]
+#[command(
+    after_help = "The model is inverted sample by sample (root finding on a copy of it, with a preview of its relative degree: one sample through second-order dynamics). Example:\n  hystbench compensate --model plants/prandtl_ishlinskii_piezo.json --reference ref.csv --out u.csv --limits -10:150\nSee docs/compensation.md."
+)]
+pub struct Args {
+    /// The model: a plant file or a grey-box model (`hystbench fit`).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// The reference: a CSV with a time column and one column per model output.
+    #[arg(long)]
+    pub reference: PathBuf,
+    /// Reference columns, one per model output in its order (default: the model's output
+    /// names).
+    #[arg(long, value_delimiter = ',')]
+    pub columns: Option<Vec<String>>,
+    /// The compensating input: time and one column per model input.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// The actuator's range per input, `lo:hi` (comma-separated for several inputs); inputs
+    /// beyond it are clipped and reported.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub limits: Option<Vec<String>>,
+    /// Replace an existing output file.
+    #[arg(long)]
+    pub force: bool,
+    /// Print one JSON object: {"delay", "samples", "seconds", "clipped": [...]}.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// A model file as a plant: a plant file, or a grey-box model's fitted plant.
+pub fn model_plant(path: &Path) -> anyhow::Result<(Plant, Option<f64>)> {
+    if let Ok(m) = hystbench::graybox::FittedGreyBox::load(path) {
+        return Ok((m.plant.clone(), Some(m.fit.sampling_period_s)));
+    }
+    match Plant::from_file(path) {
+        Ok(p) => Ok((p, None)),
+        Err(e) => {
+            let text = std::fs::read_to_string(path).unwrap_or_default();
+            if text.contains(hystbench::narx::model::FORMAT) {
+                anyhow::bail!(
+                    "{}: a NARX model cannot be inverted by `compensate` yet; fit a grey-box model (`hystbench fit`) of the same record and compensate with it",
+                    path.display()
+                )
+            }
+            Err(e.into())
+        }
+    }
+}
+
+/// The reference signals (one per model output), their time column and sampling period.
+pub struct Reference {
+    pub time_name: String,
+    pub time: Vec<f64>,
+    pub ts: f64,
+    pub names: Vec<String>,
+    pub signals: Vec<Vec<f64>>,
+}
+
+/// Read `path`'s columns for the model's outputs.
+pub fn read_reference(
+    path: &Path,
+    plant: &Plant,
+    columns: Option<&[String]>,
+    model_ts: Option<f64>,
+) -> anyhow::Result<Reference> {
+    let rec = read_csv(path)?;
+    let names: Vec<String> = match columns {
+        Some(c) => c.to_vec(),
+        None => plant.outputs.clone(),
+    };
+    if names.len() != plant.outputs.len() {
+        anyhow::bail!(
+            "{}: {} reference columns ({}) for {} model outputs ({}); give one per output with --columns",
+            path.display(),
+            names.len(),
+            names.join(", "),
+            plant.outputs.len(),
+            plant.outputs.join(", ")
+        );
+    }
+    let signals = names
+        .iter()
+        .map(|n| {
+            rec.column(n).map(<[f64]>::to_vec).map_err(|_| {
+                anyhow::anyhow!(
+                    "{}: no column `{n}` (the columns are: {}); name the reference columns with --columns",
+                    path.display(),
+                    rec.names.join(", ")
+                )
+            })
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let Some(time_name) = rec.time_column().map(str::to_string) else {
+        anyhow::bail!(
+            "{}: no time column (`t`, `time`, `t_<unit>`): the reference needs its sampling period",
+            path.display()
+        );
+    };
+    let Some(ts) = rec.sampling_period()? else {
+        anyhow::bail!("{}: the time column has no steps", path.display());
+    };
+    if let Some(m) = model_ts {
+        if ((ts - m) / m).abs() > 1e-6 {
+            anyhow::bail!(
+                "{}: sampling period {ts} s, but the model was fitted at {m} s: resample the reference to the model's period",
+                path.display()
+            );
+        }
+    }
+    let time = rec.column(&time_name)?.to_vec();
+    Ok(Reference {
+        time_name,
+        time,
+        ts,
+        names,
+        signals,
+    })
+}
+
+/// `lo:hi` per input.
+pub fn parse_limits(
+    limits: Option<&[String]>,
+    inputs: &[String],
+) -> anyhow::Result<Vec<Option<(f64, f64)>>> {
+    let Some(list) = limits else {
+        return Ok(vec![None; inputs.len()]);
+    };
+    if list.len() != inputs.len() {
+        anyhow::bail!(
+            "--limits: {} ranges for {} inputs ({}); give one `lo:hi` per input",
+            list.len(),
+            inputs.len(),
+            inputs.join(", ")
+        );
+    }
+    list.iter()
+        .map(|s| {
+            let bad =
+                || anyhow::anyhow!("--limits: `{s}` is not `lo:hi` with lo < hi (e.g. -10:150)");
+            let (a, b) = s.split_once(':').ok_or_else(bad)?;
+            let (lo, hi): (f64, f64) = (
+                a.trim().parse().map_err(|_| bad())?,
+                b.trim().parse().map_err(|_| bad())?,
+            );
+            if lo.is_finite() && hi.is_finite() && lo < hi {
+                Ok(Some((lo, hi)))
+            } else {
+                Err(bad())
+            }
+        })
+        .collect()
+}
+
+/// Warnings for the inputs that were clipped.
+pub fn clipped_lines(c: &Compensation, time: &[f64]) -> Vec<String> {
+    c.clipped
+        .iter()
+        .filter(|k| k.count > 0)
+        .map(|k| {
+            let at = |i: Option<usize>| i.and_then(|i| time.get(i)).copied().unwrap_or(0.0);
+            format!(
+                "warning: input `{}` clipped at the actuator's limits on {} samples ({:.2} %), from t = {} s to t = {} s: the reference is beyond what the actuator reaches there",
+                k.input,
+                k.count,
+                100.0 * k.share,
+                at(k.first),
+                at(k.last)
+            )
+        })
+        .collect()
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    hystbench::data::check_writable(&a.out, a.force)?;
+    let (plant, model_ts) = model_plant(&a.model)?;
+    let r = read_reference(&a.reference, &plant, a.columns.as_deref(), model_ts)?;
+    let opts = CompensateOptions {
+        limits: parse_limits(a.limits.as_deref(), &plant.inputs)?,
+        ..Default::default()
+    };
+    let refs: Vec<&[f64]> = r.signals.iter().map(Vec::as_slice).collect();
+    let t0 = Instant::now();
+    let c = compensate(&plant, &refs, r.ts, &opts)?;
+    let seconds = t0.elapsed().as_secs_f64();
+    let mut names = vec![r.time_name.clone()];
+    names.extend(plant.inputs.iter().cloned());
+    let mut cols = vec![r.time.clone()];
+    cols.extend(c.inputs.iter().cloned());
+    write_csv_atomic(&a.out, &names, &cols, a.force)?;
+    let n = r.time.len();
+    if a.json {
+        crate::cli::print(&serde_json::to_string(&serde_json::json!({
+            "delay": c.delay,
+            "samples": n,
+            "seconds": seconds,
+            "clipped": c.clipped,
+        }))?);
+    } else {
+        for w in clipped_lines(&c, &r.time) {
+            eprintln!("{w}");
+        }
+        crate::cli::print(&format!(
+            "compensated {} ({} samples, preview {} sample{}) in {:.2} s; wrote {}",
+            a.model.display(),
+            n,
+            c.delay,
+            if c.delay == 1 { "" } else { "s" },
+            seconds,
+            a.out.display()
+        ));
+    }
+    Ok(())
+}
