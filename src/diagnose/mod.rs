@@ -182,7 +182,17 @@ pub fn diagnose_model(
     let Some(ropts) = opts.refit else {
         return d;
     };
-    let tested: Vec<EffectName> = d.ranking.iter().map(|r| r.effect).collect();
+    // every ranked effect, but those whose direct signature the banks do not see
+    let tested: Vec<EffectName> = d
+        .ranking
+        .iter()
+        .filter(|r| {
+            registry::effect(r.effect)
+                .and_then(|e| e.refit_evidence())
+                .is_none_or(|min| r.explained >= min)
+        })
+        .map(|r| r.effect)
+        .collect();
     let Some(check) = refit_check(config, rec, &tested, &ropts) else {
         return d;
     };

@@ -23,6 +23,9 @@ use super::{finite, positive, Effect, EffectError, EffectName, Operator, Slot};
 use serde::{Deserialize, Serialize};
 use std::borrow::Cow;
 
+/// Share of a residual the bank must explain before the refit test tries the effect.
+pub const REFIT_EVIDENCE: f64 = 0.05;
+
 /// The effect's name.
 pub const NAME: EffectName = EffectName::new("drift");
 
@@ -233,6 +236,11 @@ impl Effect for DriftEffect {
             bank.push(format!("cos({} pi t / T)", k + 1), c);
         }
         Some(bank)
+    }
+    /// Tried by the refit test only when its bank explains 5 % of the residual (a slow trend shows
+    /// in the bank directly).
+    fn refit_evidence(&self) -> Option<f64> {
+        Some(REFIT_EVIDENCE)
     }
     fn evidence(&self, ctx: &EvidenceContext) -> String {
         let n = ctx.error.len();

@@ -22,6 +22,9 @@ use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
 use super::{finite, Effect, EffectError, EffectName, Operator, Slot};
 use serde::{Deserialize, Serialize};
 
+/// Share of a residual the bank must explain before the refit test tries the effect.
+pub const REFIT_EVIDENCE: f64 = 0.05;
+
 /// The effect's name.
 pub const NAME: EffectName = EffectName::new("saturation");
 
@@ -215,6 +218,11 @@ impl Effect for SaturationEffect {
             bank.push(format!("prediction {side} its {q} % quantile"), h);
         }
         Some(bank)
+    }
+    /// Tried by the refit test only when its bank explains 5 % of the residual (flattened extremes shows
+    /// in the bank directly).
+    fn refit_evidence(&self) -> Option<f64> {
+        Some(REFIT_EVIDENCE)
     }
     fn evidence(&self, ctx: &EvidenceContext) -> String {
         format!(

@@ -88,6 +88,13 @@ pub trait Effect: Send + Sync + 'static {
     fn basis(&self, _ctx: &BasisContext) -> Option<BasisBank> {
         None
     }
+    /// The share of a residual this effect's bank must explain out of sample before the
+    /// diagnosis' refit test tries the effect (`None`: always tried). For an effect whose
+    /// signature in the residual is direct (a slow trend in time, a flattened extreme), a bank
+    /// that sees nothing means a refit would find nothing, and the refit is skipped.
+    fn refit_evidence(&self) -> Option<f64> {
+        None
+    }
     /// What in the residual shows this effect (the diagnosis sentence's evidence).
     fn evidence(&self, _ctx: &EvidenceContext) -> String {
         format!("its basis explains part of the residual ({})", self.name())
