@@ -316,3 +316,56 @@ fn the_loop_over_a_small_zoo_names_the_hidden_effects() {
     let report = std::fs::read_to_string(z.join("loop/report.md")).unwrap();
     assert!(report.contains("| hysteresis |"), "{report}");
 }
+
+/// `--extra drift,saturation` adds the effects sized by each output's range, from a stream of
+/// their own: without them every member is the default zoo's; with them the records change.
+#[test]
+fn extra_effects_are_drawn_on_top_of_the_default_zoo() {
+    use hystbench::plant::PlantSpec;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("zoo");
+    let o = hystbench(&[
+        "zoo",
+        "--count",
+        "8",
+        "--seed",
+        "3",
+        "--extra",
+        "drift,saturation",
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let index = ZooIndex::read(&out).unwrap();
+    assert_eq!(index.extra.len(), 2);
+    let mut drawn = 0;
+    for e in &index.members {
+        let mut p = PlantSpec::read(&out.join(&e.plant)).unwrap();
+        let default = zoo::member(3, e.index).plant;
+        for o in p.outputs.iter_mut() {
+            let before = o.effects.len();
+            o.effects.retain(|x| {
+                x.effect() != hystbench::effect::drift::NAME
+                    && x.effect() != hystbench::effect::saturation::NAME
+            });
+            drawn += before - o.effects.len();
+        }
+        assert_eq!(p.outputs, default.outputs, "member {}", e.index);
+    }
+    assert!(drawn > 0, "no extra effect drawn on 8 members");
+    let o = hystbench(&[
+        "zoo",
+        "--count",
+        "2",
+        "--extra",
+        "creep",
+        "--out",
+        s(&dir.path().join("z2")),
+    ]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("drift, saturation"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.path().join("z2").exists());
+}

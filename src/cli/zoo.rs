@@ -27,6 +27,11 @@ pub struct Args {
     /// 2dof-short, 2dof-long); each keeps its index in the whole zoo.
     #[arg(long, value_delimiter = ',')]
     pub classes: Vec<zoo::Class>,
+    /// Effects drawn on top of the default zoo, sized by each output's range (comma-separated:
+    /// drift, saturation); each output gets each with probability 1/2, from a stream of its
+    /// own, so that the rest of every member is the default zoo's.
+    #[arg(long, value_delimiter = ',')]
+    pub extra: Vec<hystbench::effect::EffectName>,
     /// Replace an existing zoo folder.
     #[arg(long)]
     pub force: bool,
@@ -83,16 +88,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 fn make(a: Args) -> anyhow::Result<()> {
     let done = AtomicUsize::new(0);
     let count = a.count;
-    let index = zoo::make(&a.out, a.count, a.seed, &a.classes, a.force, &|e| {
-        let k = done.fetch_add(1, Ordering::Relaxed) + 1;
-        eprintln!(
-            "[{k}/{count}] member {:>4}: {:<10} {:>7} samples at {:.3} ms",
-            e.index,
-            e.class.name(),
-            e.samples,
-            e.sampling_period_s * 1e3
-        );
-    })?;
+    let index = zoo::make(
+        &a.out,
+        a.count,
+        a.seed,
+        &a.classes,
+        &a.extra,
+        a.force,
+        &|e| {
+            let k = done.fetch_add(1, Ordering::Relaxed) + 1;
+            eprintln!(
+                "[{k}/{count}] member {:>4}: {:<10} {:>7} samples at {:.3} ms",
+                e.index,
+                e.class.name(),
+                e.samples,
+                e.sampling_period_s * 1e3
+            );
+        },
+    )?;
     let mut per_class = std::collections::BTreeMap::new();
     for m in &index.members {
         *per_class.entry(m.class.name()).or_insert(0) += 1;

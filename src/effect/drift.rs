@@ -17,6 +17,7 @@
 //! - Physik Instrumente, "Piezo tutorial: drift and temperature" (thermal drift, settling).
 
 use super::basis::{BasisBank, BasisContext, EvidenceContext};
+use super::draw::Dice;
 use super::fitting::{Column, OutputSetup, TermFit, TermSpec};
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
 use super::{finite, positive, Effect, EffectError, EffectName, Operator, Slot};
@@ -225,6 +226,30 @@ impl Effect for DriftEffect {
             rate: 0.02,
             amplitudes: vec![1.5],
             time_constants_s: vec![8.0],
+        }))
+    }
+    /// The zoo's drift (`zoo --extra drift`), for an output of range R over a record of
+    /// span T: a settling of amplitude log-uniform 2-15 % of R (either sign) with a time
+    /// constant log-uniform 0.05-1 T, and a ramp of 0-5 % of R over T (either sign).
+    fn draw_on_output(
+        &self,
+        output: &[f64],
+        ts: f64,
+        dice: &mut Dice,
+    ) -> Option<Box<dyn EffectSpec>> {
+        let range = crate::metrics::ptp(output);
+        let span = output.len() as f64 * ts;
+        if !(range > 0.0 && span > 0.0) {
+            return None;
+        }
+        let sign = |d: &mut Dice| if d.chance(0.5) { 1.0 } else { -1.0 };
+        let amplitude = sign(dice) * dice.log_uniform(0.02, 0.15) * range;
+        let tau = dice.log_uniform(0.05, 1.0) * span;
+        let rate = sign(dice) * dice.uniform(0.0, 0.05) * range / span;
+        Some(Box::new(DriftSpec {
+            rate,
+            amplitudes: vec![amplitude],
+            time_constants_s: vec![tau],
         }))
     }
     fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {

@@ -17,6 +17,7 @@
 //!   26(1):24-36, 1958 (censored regression).
 
 use super::basis::{BasisBank, BasisContext, EvidenceContext};
+use super::draw::Dice;
 use super::fitting::{Censoring, SensorFit};
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
 use super::{finite, Effect, EffectError, EffectName, Operator, Slot};
@@ -210,6 +211,29 @@ impl Effect for SaturationEffect {
             lower: Some(-9.0),
             upper: Some(9.0),
         }))
+    }
+    /// The zoo's saturation (`zoo --extra saturation`): the top of the output clipped (half
+    /// of the draws), its bottom (a quarter) or both (a quarter), each limit where a share
+    /// log-uniform 2-15 % of the samples lies beyond it.
+    fn draw_on_output(
+        &self,
+        output: &[f64],
+        _ts: f64,
+        dice: &mut Dice,
+    ) -> Option<Box<dyn EffectSpec>> {
+        let mut s: Vec<f64> = output.iter().copied().filter(|v| v.is_finite()).collect();
+        if s.len() < 10 || crate::metrics::ptp(&s) <= 0.0 {
+            return None;
+        }
+        s.sort_by(f64::total_cmp);
+        let side = dice.pick(&[0.5, 0.25, 0.25]);
+        let limit = |top: bool, d: &mut Dice| {
+            let share = d.log_uniform(0.02, 0.15);
+            quantile(&s, if top { 1.0 - share } else { share })
+        };
+        let upper = (side != 1).then(|| limit(true, dice));
+        let lower = (side != 0).then(|| limit(false, dice));
+        Some(Box::new(SaturationSpec { lower, upper }))
     }
     fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
         let mut bank = BasisBank::new(NAME);

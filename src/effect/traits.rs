@@ -77,6 +77,17 @@ pub trait Effect: Send + Sync + 'static {
     fn draw(&self, _ctx: &DrawContext, _dice: &mut Dice) -> Option<Box<dyn EffectSpec>> {
         None
     }
+    /// A random spec for an output whose noiseless signal (without this effect) is `output`,
+    /// sampled every `ts` seconds, for the zoo's `--extra` effects: an effect whose size is a
+    /// share of the output's range (a drift, a sensor's limits). `None`: not drawn this way.
+    fn draw_on_output(
+        &self,
+        _output: &[f64],
+        _ts: f64,
+        _dice: &mut Dice,
+    ) -> Option<Box<dyn EffectSpec>> {
+        None
+    }
     /// For an effect that is a structure: does the plant have it?
     fn in_structure(&self, _plant: &StructureView) -> bool {
         false

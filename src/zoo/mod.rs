@@ -47,6 +47,8 @@ pub const INDEX: &str = "zoo.json";
 pub enum ZooError {
     #[error("--count must be at least 1 (got 0)")]
     NoMembers,
+    #[error("--extra {effect}: the zoo draws only effects sized by an output's range on top of its plants ({allowed})")]
+    Extra { effect: String, allowed: String },
     #[error("{dir}: exists and is not a zoo folder (no {INDEX}); choose another folder")]
     NotAZoo { dir: PathBuf },
     #[error("{dir}: exists; pass --force to replace this zoo")]
@@ -91,6 +93,9 @@ pub struct ZooIndex {
     pub format: String,
     pub version: u32,
     pub seed: u64,
+    /// Effects drawn on top of the default zoo (`zoo --extra`), sized by each output's range.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub extra: Vec<crate::effect::EffectName>,
     pub members: Vec<IndexEntry>,
 }
 
@@ -155,8 +160,15 @@ struct MemberFiles {
 /// Draws member `index` and simulates its record: once without noise to measure each output's
 /// range, then with the noise the member draws (a share of that range) written into its
 /// scenario, so that `simulate` with the written files gives the same record.
-fn make_member(seed: u64, index: usize) -> Result<MemberFiles, ZooError> {
+fn make_member(
+    seed: u64,
+    index: usize,
+    extra: &[crate::effect::EffectName],
+) -> Result<MemberFiles, ZooError> {
     let mut m = member(seed, index);
+    if !extra.is_empty() {
+        draw_extra(&mut m, seed, index, extra)?;
+    }
     let name = format!("{index:04}");
     let plant_path = PathBuf::from(format!("plants/{name}.json"));
     let scen_path = PathBuf::from(format!("scenarios/{name}.json"));
@@ -204,6 +216,65 @@ fn make_member(seed: u64, index: usize) -> Result<MemberFiles, ZooError> {
     })
 }
 
+/// Draws the `extra` effects on member `m`'s outputs (each output gets each with probability
+/// 1/2, from its own stream so that the rest of the member is the default zoo's): each effect
+/// sizes itself on the output's noiseless signal without it ([`crate::effect::Effect::draw_on_output`]).
+fn draw_extra(
+    m: &mut Member,
+    seed: u64,
+    index: usize,
+    extra: &[crate::effect::EffectName],
+) -> Result<(), ZooError> {
+    let mut dice = crate::effect::draw::Dice::new(seed ^ 0x5eed_e47a, index as u64);
+    let scen_path = PathBuf::from(format!("scenarios/{index:04}.json"));
+    let scenario = m
+        .scenario
+        .check(&scen_path)
+        .map_err(|source| ZooError::Scenario { index, source })?;
+    for &name in extra {
+        let Some(effect) = crate::effect::registry::effect(name) else {
+            continue;
+        };
+        let plant_path = PathBuf::from(format!("plants/{index:04}.json"));
+        let plant = m
+            .plant
+            .check(&plant_path)
+            .map_err(|source| ZooError::Plant { index, source })?;
+        let clean = simulate_scenario(&plant, &scenario, None)
+            .map_err(|source| ZooError::Simulate { index, source })?;
+        for (o, out) in m.plant.outputs.iter_mut().enumerate() {
+            if !dice.chance(0.5) {
+                continue;
+            }
+            let y = &clean.record.outputs[o].values;
+            if let Some(spec) = effect.draw_on_output(y, clean.record.ts, &mut dice) {
+                out.effects.push(spec);
+                // in registry (chain) order
+                out.effects.sort_by_key(|s| s.effect());
+            }
+        }
+    }
+    m.plant.description += &format!(" Extra effects drawn: {}.", {
+        let names: Vec<String> = m
+            .plant
+            .outputs
+            .iter()
+            .flat_map(|o| {
+                o.effects
+                    .iter()
+                    .filter(|e| extra.contains(&e.effect()))
+                    .map(move |e| format!("{}: {}", o.name, e.effect()))
+            })
+            .collect();
+        if names.is_empty() {
+            "none".to_string()
+        } else {
+            names.join(", ")
+        }
+    });
+    Ok(())
+}
+
 /// The indices of the first `count` members of seed `seed` whose class is one of `classes`
 /// (every class when empty).
 pub fn member_indices(seed: u64, count: usize, classes: &[Class]) -> Vec<usize> {
@@ -218,22 +289,42 @@ pub fn member_indices(seed: u64, count: usize, classes: &[Class]) -> Vec<usize> 
 /// folder is written whole or not at all (built beside it, then moved in place); an existing
 /// zoo is replaced only with `force`, and a folder that is not a zoo never. `progress` hears
 /// each member as it is done (in any order).
+#[allow(clippy::too_many_arguments)]
 pub fn make(
     dir: &Path,
     count: usize,
     seed: u64,
     classes: &[Class],
+    extra: &[crate::effect::EffectName],
     force: bool,
     progress: &(dyn Fn(&IndexEntry) + Sync),
 ) -> Result<ZooIndex, ZooError> {
     if count == 0 {
         return Err(ZooError::NoMembers);
     }
+    let drawable = |e: &dyn crate::effect::Effect| {
+        let probe: Vec<f64> = (0..100).map(|k| (0.1 * k as f64).sin()).collect();
+        e.draw_on_output(&probe, 1e-3, &mut crate::effect::draw::Dice::new(0, 0))
+            .is_some()
+    };
+    for name in extra {
+        if !crate::effect::registry::effect(*name).is_some_and(drawable) {
+            let allowed: Vec<String> = crate::effect::effects()
+                .into_iter()
+                .filter(|e| drawable(*e))
+                .map(|e| e.name().to_string())
+                .collect();
+            return Err(ZooError::Extra {
+                effect: name.to_string(),
+                allowed: allowed.join(", "),
+            });
+        }
+    }
     let replace = check_target(dir, force)?;
     let files: Vec<MemberFiles> = member_indices(seed, count, classes)
         .into_par_iter()
         .map(|i| {
-            let f = make_member(seed, i)?;
+            let f = make_member(seed, i, extra)?;
             progress(&f.entry);
             Ok(f)
         })
@@ -242,6 +333,7 @@ pub fn make(
         format: FORMAT.into(),
         version: VERSION,
         seed,
+        extra: extra.to_vec(),
         members: files.iter().map(|f| f.entry.clone()).collect(),
     };
     let parent = match dir.parent() {
