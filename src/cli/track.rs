@@ -117,7 +117,12 @@ pub fn execute(a: &Args) -> anyhow::Result<TrackResult> {
         .map(|j| {
             let o = j.min(r.signals.len() - 1);
             let (g, b) = static_gain(&model, j, o, &c.inputs[j], r.ts)?;
-            Ok(r.signals[o].iter().map(|v| (v - b) / g).collect())
+            // the same actuator range as the compensated run
+            let (lo, hi) = opts.limits[j].unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
+            Ok(r.signals[o]
+                .iter()
+                .map(|v| ((v - b) / g).clamp(lo, hi))
+                .collect())
         })
         .collect::<anyhow::Result<_>>()?;
     let u0r: Vec<&[f64]> = u0.iter().map(Vec::as_slice).collect();

@@ -14,6 +14,12 @@ pub enum CompensateError {
         found: usize,
         names: String,
     },
+    #[error("the reference of output `{output}` has {found} samples, the first one {expected}: give every output's reference over the same samples")]
+    ReferenceLength {
+        output: String,
+        found: usize,
+        expected: usize,
+    },
     #[error("the model has {inputs} inputs for {outputs} outputs: a reference per output does not fix every input")]
     MoreInputsThanOutputs { inputs: usize, outputs: usize },
     #[error("no value of input `{input}` brings output `{output}` to {target} at sample {sample}: the model is not monotone in its newest input there (or diverges); check the model, or give actuator limits with --limits")]

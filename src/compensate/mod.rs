@@ -89,23 +89,28 @@ pub struct Compensation {
 }
 
 /// The plant's relative degree: the fewest samples after which a change of an input shows in
-/// an output (at most 4), probed from rest.
+/// an output (at most 4), probed from rest with pushes of both signs growing from `scale` by
+/// decades (a play operator with a threshold above a small push does not move).
 fn relative_degree(state: &PlantState, scale: &[f64]) -> usize {
     let (ni, no) = (state.inputs(), state.outputs());
     for d in 0..=4 {
         for j in 0..ni {
-            let mut a = state.clone();
-            let mut b = state.clone();
-            let (mut ya, mut yb) = (vec![0.0; no], vec![0.0; no]);
-            let zero = vec![0.0; ni];
-            let mut push = zero.clone();
-            push[j] = scale[j].max(1e-9);
-            for step in 0..=d {
-                a.step(&zero, &mut ya);
-                b.step(if step == 0 { &push } else { &zero }, &mut yb);
-            }
-            if ya.iter().zip(&yb).any(|(p, q)| p != q) {
-                return d;
+            for m in 0..8 {
+                for sign in [1.0, -1.0] {
+                    let mut a = state.clone();
+                    let mut b = state.clone();
+                    let (mut ya, mut yb) = (vec![0.0; no], vec![0.0; no]);
+                    let zero = vec![0.0; ni];
+                    let mut push = zero.clone();
+                    push[j] = sign * scale[j].max(1e-9) * 10f64.powi(m);
+                    for step in 0..=d {
+                        a.step(&zero, &mut ya);
+                        b.step(if step == 0 { &push } else { &zero }, &mut yb);
+                    }
+                    if ya.iter().zip(&yb).any(|(p, q)| p != q) {
+                        return d;
+                    }
+                }
             }
         }
     }
@@ -233,6 +238,13 @@ pub fn compensate(
         });
     }
     let n = reference.first().map_or(0, |r| r.len());
+    if let Some((o, r)) = reference.iter().enumerate().find(|(_, r)| r.len() != n) {
+        return Err(CompensateError::ReferenceLength {
+            output: plant.outputs[o].clone(),
+            found: r.len(),
+            expected: n,
+        });
+    }
     let ranges: Vec<f64> = reference
         .iter()
         .map(|r| crate::metrics::ptp(r).max(r.iter().fold(0.0f64, |m, v| m.max(v.abs()))))
@@ -360,6 +372,9 @@ pub fn static_gain(
     ts: f64,
 ) -> Result<(f64, f64), CompensateError> {
     let mut s: Vec<f64> = u.iter().copied().filter(|v| v.is_finite()).collect();
+    if s.is_empty() {
+        return Ok((1.0, 0.0));
+    }
     s.sort_by(f64::total_cmp);
     let q = |p: f64| s[((s.len() - 1) as f64 * p).round() as usize];
     let (lo, hi) = (q(0.01), q(0.99));

@@ -251,6 +251,6 @@ impl Censoring {
 pub trait SensorFit: Send + Sync {
     /// The limits that the measured output `y` (training samples) shows.
     fn censoring(&self, y: &[f64]) -> Censoring;
-    /// The fitted sensor as a plant-file spec.
-    fn spec(&self, c: &Censoring) -> Box<dyn EffectSpec>;
+    /// The fitted sensor as a plant-file spec (`None`: the record shows no limit).
+    fn spec(&self, c: &Censoring) -> Option<Box<dyn EffectSpec>>;
 }

@@ -8,7 +8,9 @@
 //! or at most the lower one); the model is fitted to the other samples (the censored
 //! regression of Tobin 1958, whose likelihood for a model without noise is the fit to the
 //! uncensored samples) and the limits are put on its output. The limits are read from the
-//! record: the mean of the samples within four noise levels of its extreme values ([`detect`]).
+//! record: the mean of the samples within four noise levels of an extreme where they pile up
+//! ([`detect`]); a record whose extremes are smooth peaks shows no limit, and the fitted model
+//! gets no saturation.
 //!
 //! ## References
 //! - G. Tao, P. V. Kokotovic, *Adaptive Control of Systems with Actuator and Sensor
@@ -145,8 +147,16 @@ pub fn noise_level(y: &[f64]) -> f64 {
     1.4826 * quantile(&d, 0.5) / 6f64.sqrt()
 }
 
-/// The limits a measured output shows: samples within four noise levels of its maximum (or
-/// minimum) are taken as at the limit, and the limit is their mean.
+/// Samples within eight noise levels of an extreme must outnumber those in the next band of
+/// the same width by this factor for the extreme to be a limit (a smooth peak gives about 2.4,
+/// a clipped one tens).
+pub const PILE_UP: f64 = 4.0;
+
+/// The limits a measured output shows: at each extreme, the samples within eight noise levels
+/// of it are a limit's when they pile up there ([`PILE_UP`] times the samples in the next band
+/// of that width, and at least 0.5 % of the record); the limit is their mean. An extreme
+/// without a pile-up (a smooth peak) gives no limit. Samples within four noise levels of a
+/// limit are censored.
 pub fn detect(y: &[f64]) -> Censoring {
     let finite: Vec<f64> = y.iter().copied().filter(|v| v.is_finite()).collect();
     let (lo, hi) = finite
@@ -156,17 +166,31 @@ pub fn detect(y: &[f64]) -> Censoring {
         });
     let range = hi - lo;
     let tolerance = (4.0 * noise_level(&finite)).max(1e-9 * range.abs());
-    let mean_near = |at: f64| {
+    // the limit at extreme `at`, seen from inside in direction `dir` (-1 below the top)
+    let limit = |at: f64, dir: f64| -> Option<f64> {
+        let depth = |v: f64| (v - at) * dir;
         let near: Vec<f64> = finite
             .iter()
             .copied()
-            .filter(|v| (v - at).abs() <= tolerance)
+            .filter(|&v| depth(v) <= 2.0 * tolerance)
             .collect();
-        crate::metrics::mean(&near)
+        let next = finite
+            .iter()
+            .filter(|&&v| depth(v) > 2.0 * tolerance && depth(v) <= 4.0 * tolerance)
+            .count();
+        let enough = near.len() as f64 >= 0.005 * finite.len() as f64;
+        (range.is_finite() && enough && near.len() as f64 >= PILE_UP * next.max(1) as f64)
+            .then(|| crate::metrics::mean(&near))
     };
+    let (mut lower, mut upper) = (limit(lo, 1.0), limit(hi, -1.0));
+    if let (Some(l), Some(h)) = (lower, upper) {
+        if h - l <= 2.0 * tolerance {
+            (lower, upper) = (None, None);
+        }
+    }
     Censoring {
-        lower: range.is_finite().then(|| mean_near(lo)),
-        upper: range.is_finite().then(|| mean_near(hi)),
+        lower,
+        upper,
         tolerance,
     }
 }
@@ -178,10 +202,12 @@ impl SensorFit for SaturationFit {
     fn censoring(&self, y: &[f64]) -> Censoring {
         detect(y)
     }
-    fn spec(&self, c: &Censoring) -> Box<dyn EffectSpec> {
-        Box::new(SaturationSpec {
-            lower: c.lower,
-            upper: c.upper,
+    fn spec(&self, c: &Censoring) -> Option<Box<dyn EffectSpec>> {
+        (c.lower.is_some() || c.upper.is_some()).then(|| {
+            Box::new(SaturationSpec {
+                lower: c.lower,
+                upper: c.upper,
+            }) as Box<dyn EffectSpec>
         })
     }
 }
@@ -310,6 +336,21 @@ mod tests {
             (noise_level(&y) - 0.002).abs() < 0.0005,
             "{}",
             noise_level(&y)
+        );
+        // a sine that is not clipped shows no limit; one clipped at the top only, one limit
+        let smooth: Vec<f64> = (0..5000)
+            .map(|k| (0.01 * k as f64).sin() + 0.002 * g.standard_normal())
+            .collect();
+        let c = detect(&smooth);
+        assert_eq!((c.lower, c.upper), (None, None), "{c:?}");
+        let top: Vec<f64> = (0..5000)
+            .map(|k| (0.01 * k as f64).sin().min(0.6) + 0.002 * g.standard_normal())
+            .collect();
+        let c = detect(&top);
+        assert!(
+            c.lower.is_none() && c.upper.is_some_and(|h| (h - 0.6).abs() < 0.003),
+            "{c:?} {}",
+            noise_level(&top)
         );
     }
 }

@@ -304,6 +304,10 @@ impl GreyBoxConfig {
             return self.fit_output_values(train, o, None, u, names);
         };
         let censoring = sensor.censoring(y);
+        if censoring.lower.is_none() && censoring.upper.is_none() {
+            // the record shows no limit: the model without a sensor
+            return self.fit_output_values(train, o, None, u, names);
+        }
         let censored: Vec<bool> = y.iter().map(|&v| censoring.censored(v)).collect();
         let mut fitted = self.fit_output_values(train, o, Some(&censored), u, names)?;
         for _ in 0..SENSOR_ROUNDS {
@@ -319,7 +323,7 @@ impl GreyBoxConfig {
                 .collect();
             fitted = self.fit_output_values(train, o, Some(&mask), u, names)?;
         }
-        fitted.0.effects.push(sensor.spec(&censoring));
+        fitted.0.effects.extend(sensor.spec(&censoring));
         Ok(fitted)
     }
 
