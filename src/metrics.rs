@@ -340,6 +340,14 @@ pub fn branch_gap(u: &[f64], y: &[f64], bins: usize) -> f64 {
     }
 }
 
+/// Linear-interpolation quantile `q` in [0, 1] of sorted, non-empty values.
+pub fn quantile(sorted: &[f64], q: f64) -> f64 {
+    let x = q.clamp(0.0, 1.0) * (sorted.len() - 1) as f64;
+    let (i, f) = (x.floor() as usize, x - x.floor());
+    let j = (i + 1).min(sorted.len() - 1);
+    sorted[i] + f * (sorted[j] - sorted[i])
+}
+
 #[cfg(test)]
 mod loop_tests {
     use super::*;

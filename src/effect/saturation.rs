@@ -23,6 +23,7 @@ use super::draw::Dice;
 use super::fitting::{Censoring, SensorFit};
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
 use super::{finite, Effect, EffectError, EffectName, Operator, Slot};
+use crate::metrics::quantile;
 use serde::{Deserialize, Serialize};
 
 /// Share of a residual the bank must explain before the refit test tries the effect.
@@ -100,14 +101,6 @@ impl Params for Saturation {
     fn operator(&self, _ts: f64) -> Result<BoxedOperator, EffectError> {
         Ok(Box::new(SaturationOp(*self)))
     }
-}
-
-/// Linear-interpolation quantile of sorted values.
-fn quantile(sorted: &[f64], q: f64) -> f64 {
-    let x = q * (sorted.len() - 1) as f64;
-    let (i, f) = (x.floor() as usize, x - x.floor());
-    let j = (i + 1).min(sorted.len() - 1);
-    sorted[i] + f * (sorted[j] - sorted[i])
 }
 
 /// Hinges of a prediction beyond its 3, 10, 90 and 97 % quantiles, max(y_hat - q, 0) and

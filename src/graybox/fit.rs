@@ -40,6 +40,21 @@ struct PlacedTerm<'a> {
     params: Range<usize>,
 }
 
+impl<'a> PlacedTerm<'a> {
+    /// `term` placed after `n_cols` columns and `n_theta` parameters (both moved past it).
+    fn place(term: Box<dyn TermFit + 'a>, n_cols: &mut usize, n_theta: &mut usize) -> Self {
+        let (nc, np) = (term.n_columns(), term.n_params());
+        let placed = PlacedTerm {
+            term,
+            cols: *n_cols..*n_cols + nc,
+            params: *n_theta..*n_theta + np,
+        };
+        *n_cols += nc;
+        *n_theta += np;
+        placed
+    }
+}
+
 /// One path: its input, its gain column and its terms.
 struct FitPath<'a> {
     input: usize,
@@ -244,14 +259,7 @@ impl<'a> OutputProblem<'a> {
                     previous: structure.previous.get(k).cloned().flatten(),
                 };
                 if let Some(term) = c.effect.term(&path) {
-                    let (nc, np) = (term.n_columns(), term.n_params());
-                    terms.push(PlacedTerm {
-                        term,
-                        cols: n_cols..n_cols + nc,
-                        params: n_theta..n_theta + np,
-                    });
-                    n_cols += nc;
-                    n_theta += np;
+                    terms.push(PlacedTerm::place(term, &mut n_cols, &mut n_theta));
                 }
             }
             paths.push(FitPath {
@@ -264,14 +272,7 @@ impl<'a> OutputProblem<'a> {
         let mut output_terms = Vec::new();
         for c in &structure.output_terms {
             if let Some(term) = c.effect.output_term(&setup(c.variant)) {
-                let (nc, np) = (term.n_columns(), term.n_params());
-                output_terms.push(PlacedTerm {
-                    term,
-                    cols: n_cols..n_cols + nc,
-                    params: n_theta..n_theta + np,
-                });
-                n_cols += nc;
-                n_theta += np;
+                output_terms.push(PlacedTerm::place(term, &mut n_cols, &mut n_theta));
             }
         }
         let chosen: Vec<_> = structure.terms.iter().map(|c| c.effect.name()).collect();
