@@ -1,9 +1,14 @@
 //! `compensate` speed: samples per second of the inverse of each shipped 1-DoF plant and of the
-//! 2-DoF cantilever, on one thread (goal of the compensation issue: 1 million samples/s for a
-//! grey-box model; a real-time loop at 10 kHz needs 10,000). Run: `cargo bench --bench compensate`.
+//! 2-DoF cantilever, and of NARX models from the default identifier, on one thread (goals of
+//! the compensation issue: 1 million samples/s for a grey-box model, 100,000 for a NARX model;
+//! a real-time loop at 10 kHz needs 10,000). Run: `cargo bench --bench compensate`.
 
 use hystbench::compensate::{compensate, CompensateOptions};
+use hystbench::narx::base::BaseUse;
+use hystbench::narx::NarxConfig;
 use hystbench::plant::PlantSpec;
+use hystbench::scenario::ScenarioSpec;
+use hystbench::simulator::simulate_scenario;
 use std::path::Path;
 use std::time::Instant;
 
@@ -41,5 +46,41 @@ fn main() {
             assert_eq!(c.inputs[0].len(), n);
         }
         println!("| {name} | {n} | {best:.3} | {:.0} |", n as f64 / best);
+    }
+    // NARX models identified on a noisy record that covers the references' band
+    let scenario = r#"{"name": "rich", "sampling_period_s": 0.0001, "samples": 40000,
+        "noise_std": 0.01, "seed": 3, "inputs": [{"sum": [
+            {"sine": {"amplitude": 22.0, "frequency_hz": 0.9}},
+            {"multisine": {"rms": 5.0, "f_min_hz": 0.5, "f_max_hz": 60.0}}]}]}"#;
+    let sc = ScenarioSpec::parse(Path::new("rich.json"), scenario)
+        .unwrap()
+        .check(Path::new("rich.json"))
+        .unwrap();
+    let r1 = r(0.0);
+    for name in ["prandtl_ishlinskii_piezo.json", "bouc_wen_piezo.json"] {
+        let path = root.join("plants").join(name);
+        let plant = PlantSpec::read(&path).unwrap().check(&path).unwrap();
+        let rec = simulate_scenario(&plant, &sc, None).unwrap().record;
+        for greybox in [true, false] {
+            let mut cfg = NarxConfig::new(rec.input_names(), rec.output_names());
+            cfg.robust.try_greybox = greybox;
+            let m = cfg.fit(&rec).unwrap();
+            let what = match m.base.as_ref().map(|b| b.outputs[0].model) {
+                Some(BaseUse::Base) => "grey-box base alone",
+                Some(BaseUse::BaseAndNetwork) => "grey-box base + network",
+                _ => "network",
+            };
+            let mut best = f64::MAX;
+            for _ in 0..3 {
+                let t0 = Instant::now();
+                let c = compensate(&m, &[&r1], ts, &CompensateOptions::default()).unwrap();
+                best = best.min(t0.elapsed().as_secs_f64());
+                assert_eq!(c.inputs[0].len(), n);
+            }
+            println!(
+                "| NARX of {name} ({what}) | {n} | {best:.3} | {:.0} |",
+                n as f64 / best
+            );
+        }
     }
 }

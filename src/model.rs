@@ -65,6 +65,25 @@ pub trait Model {
         Vec::new()
     }
 
+    /// The sampling period the model was fitted at, where it keeps one (s).
+    fn sampling_period(&self) -> Option<f64> {
+        None
+    }
+
+    /// Per input, the range of values where the model is known (a data-driven model: its
+    /// training record's, widened by a quarter of it on each side); `None`: everywhere (a
+    /// physical model).
+    fn known_inputs(&self) -> Vec<Option<(f64, f64)>> {
+        vec![None; self.input_names().len()]
+    }
+
+    /// The model at rest, to be run one sample at a time at sampling period `ts` (`path`
+    /// names its file in errors); `None` when it can only run over a whole record (a plant
+    /// integrated as an ODE).
+    fn stepped(&self, _ts: f64, _path: &Path) -> Result<Option<ModelState>, ModelError> {
+        Ok(None)
+    }
+
     /// Select this model's inputs and outputs from a record (clear error if they are not there).
     fn select(&self, rec: &Record) -> Result<IoRecord, ModelError> {
         Ok(IoRecord::from_record(
@@ -73,6 +92,84 @@ pub trait Model {
             Some(&self.output_names()),
             true,
         )?)
+    }
+}
+
+/// A model run one sample at a time whose state can be copied: what a compensator inverts,
+/// trying an input on a copy before it commits to one.
+pub trait Stepped: Clone {
+    fn inputs(&self) -> usize;
+    fn outputs(&self) -> usize;
+    /// One sample: the outputs for the inputs `u` (NaN where the model diverged).
+    fn step(&mut self, u: &[f64], y: &mut [f64]);
+    /// Samples from rest whose outputs do not depend on the inputs (a NARX model's seed).
+    fn seeded(&self) -> usize {
+        0
+    }
+    /// Output `o` after `delay` more samples with the inputs `u` held, on a copy (a
+    /// compensator's trial of an input).
+    fn ahead(&self, u: &[f64], delay: usize, o: usize) -> f64 {
+        let mut c = self.clone();
+        let mut y = vec![0.0; self.outputs()];
+        for _ in 0..=delay {
+            c.step(u, &mut y);
+        }
+        y[o]
+    }
+}
+
+impl Stepped for crate::plant::PlantState {
+    fn inputs(&self) -> usize {
+        self.inputs()
+    }
+    fn outputs(&self) -> usize {
+        self.outputs()
+    }
+    #[inline]
+    fn step(&mut self, u: &[f64], y: &mut [f64]) {
+        self.step(u, y)
+    }
+}
+
+/// The stepped form of any model: a chain plant or a grey-box model's plant
+/// ([`crate::plant::PlantState`]), or a NARX model ([`crate::narx::NarxState`]).
+#[derive(Clone)]
+pub enum ModelState {
+    Plant(crate::plant::PlantState),
+    Narx(crate::narx::NarxState),
+}
+
+impl Stepped for ModelState {
+    fn inputs(&self) -> usize {
+        match self {
+            ModelState::Plant(s) => s.inputs(),
+            ModelState::Narx(s) => s.inputs(),
+        }
+    }
+    fn outputs(&self) -> usize {
+        match self {
+            ModelState::Plant(s) => s.outputs(),
+            ModelState::Narx(s) => s.outputs(),
+        }
+    }
+    #[inline]
+    fn step(&mut self, u: &[f64], y: &mut [f64]) {
+        match self {
+            ModelState::Plant(s) => s.step(u, y),
+            ModelState::Narx(s) => s.step(u, y),
+        }
+    }
+    fn seeded(&self) -> usize {
+        match self {
+            ModelState::Plant(_) => 0,
+            ModelState::Narx(s) => s.seeded(),
+        }
+    }
+    fn ahead(&self, u: &[f64], delay: usize, o: usize) -> f64 {
+        match self {
+            ModelState::Plant(s) => Stepped::ahead(s, u, delay, o),
+            ModelState::Narx(s) => s.ahead(u, delay, o),
+        }
     }
 }
 
@@ -123,6 +220,9 @@ impl Model for Plant {
         let u: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
         Ok(self.simulate(&u, rec.ts)?)
     }
+    fn stepped(&self, ts: f64, _path: &Path) -> Result<Option<ModelState>, ModelError> {
+        Ok(self.state(ts)?.map(ModelState::Plant))
+    }
 }
 
 impl Model for crate::graybox::FittedGreyBox {
@@ -151,6 +251,12 @@ impl Model for crate::graybox::FittedGreyBox {
     fn predict(&self, rec: &IoRecord) -> Result<Vec<Vec<f64>>, ModelError> {
         Ok(self.simulate(rec)?)
     }
+    fn sampling_period(&self) -> Option<f64> {
+        Some(self.fit.sampling_period_s)
+    }
+    fn stepped(&self, ts: f64, _path: &Path) -> Result<Option<ModelState>, ModelError> {
+        Ok(self.plant.state(ts)?.map(ModelState::Plant))
+    }
 }
 
 impl Model for crate::narx::FittedNarx {
@@ -172,6 +278,26 @@ impl Model for crate::narx::FittedNarx {
     }
     fn outside(&self, rec: &IoRecord) -> Vec<crate::narx::region::Outside> {
         crate::narx::FittedNarx::outside(self, rec)
+    }
+    fn sampling_period(&self) -> Option<f64> {
+        self.sampling_period_s
+    }
+    fn known_inputs(&self) -> Vec<Option<(f64, f64)>> {
+        let n = self.config.inputs.len();
+        match &self.input_region {
+            Some(r) if r.inputs.len() == n => r
+                .inputs
+                .iter()
+                .map(|i| {
+                    let m = 0.25 * (i.max - i.min);
+                    Some((i.min - m, i.max + m))
+                })
+                .collect(),
+            _ => vec![None; n],
+        }
+    }
+    fn stepped(&self, ts: f64, path: &Path) -> Result<Option<ModelState>, ModelError> {
+        Ok(Some(ModelState::Narx(self.state(ts, path)?)))
     }
     fn band(&self, rec: &IoRecord) -> Result<Vec<Option<Vec<f64>>>, ModelError> {
         let preds = crate::narx::FittedNarx::predict(self, rec, crate::narx::Mode::FreeRun)?;

@@ -10,6 +10,7 @@
 
 use hystbench::compensate::{compensate, static_gain, tracking, CompensateOptions};
 use hystbench::graybox::GreyBoxConfig;
+use hystbench::model::Model;
 use hystbench::plant::{Plant, PlantSpec};
 use hystbench::scenario::ScenarioSpec;
 use hystbench::simulator::simulate_scenario;
@@ -74,25 +75,33 @@ fn references(a: f64, n: usize) -> Vec<(&'static str, Vec<f64>)> {
 }
 
 /// Tracking RMS (uncompensated, compensated) and the reference's range, output `o`.
-fn track(truth: &Plant, model: &Plant, refs: &[Vec<f64>]) -> Vec<(f64, f64, f64)> {
+fn track(truth: &Plant, model: &dyn Model, refs: &[Vec<f64>]) -> Vec<(f64, f64, f64)> {
+    track_at(truth, model, refs, TS)
+}
+
+/// [`track`] at sampling period `ts`.
+fn track_at(truth: &Plant, model: &dyn Model, refs: &[Vec<f64>], ts: f64) -> Vec<(f64, f64, f64)> {
     let r: Vec<&[f64]> = refs.iter().map(Vec::as_slice).collect();
-    let c = compensate(model, &r, TS, &CompensateOptions::default()).unwrap();
+    let c = compensate(model, &r, ts, &CompensateOptions::default()).unwrap();
     let uc: Vec<&[f64]> = c.inputs.iter().map(Vec::as_slice).collect();
-    let y_c = truth.simulate(&uc, TS).unwrap();
-    let u0: Vec<Vec<f64>> = (0..model.inputs.len())
+    let y_c = truth.simulate(&uc, ts).unwrap();
+    // without: the reference through the inverse of the plant's static gain (calibrated on
+    // the actuator)
+    let state = truth.state(ts).unwrap().unwrap();
+    let u0: Vec<Vec<f64>> = (0..model.input_names().len())
         .map(|j| {
-            let (g, b) = static_gain(model, j, j, &c.inputs[j], TS).unwrap();
+            let (g, b) = static_gain(&state, j, j, &c.inputs[j]);
             refs[j].iter().map(|v| (v - b) / g).collect()
         })
         .collect();
     let u0r: Vec<&[f64]> = u0.iter().map(Vec::as_slice).collect();
-    let y_0 = truth.simulate(&u0r, TS).unwrap();
+    let y_0 = truth.simulate(&u0r, ts).unwrap();
     (0..refs.len())
         .map(|o| {
             let range = hystbench::metrics::ptp(&refs[o]);
             (
-                tracking(&refs[o], &y_0[o], c.delay).rms,
-                tracking(&refs[o], &y_c[o], c.delay).rms,
+                tracking(&refs[o], &y_0[o], c.delay + c.seeded).rms,
+                tracking(&refs[o], &y_c[o], c.delay + c.seeded).rms,
                 range,
             )
         })
@@ -257,22 +266,136 @@ fn a_2dof_model_fitted_to_the_source_studys_short_record_cancels_the_cross_talk(
         wave([2.0, 13.0], [10.0, 4.0], 0.0),
         wave([3.1, 29.0], [8.0, 3.0], 0.5),
     ];
-    let r: Vec<&[f64]> = refs.iter().map(Vec::as_slice).collect();
-    let c = compensate(&fitted.plant, &r, ts, &CompensateOptions::default()).unwrap();
-    let uc: Vec<&[f64]> = c.inputs.iter().map(Vec::as_slice).collect();
-    let y_c = truth.simulate(&uc, ts).unwrap();
-    let u0: Vec<Vec<f64>> = (0..2)
-        .map(|j| {
-            let (g, b) = static_gain(&fitted.plant, j, j, &c.inputs[j], ts).unwrap();
-            refs[j].iter().map(|v| (v - b) / g).collect()
-        })
-        .collect();
-    let u0r: Vec<&[f64]> = u0.iter().map(Vec::as_slice).collect();
-    let y_0 = truth.simulate(&u0r, ts).unwrap();
-    for o in 0..2 {
-        let unc = tracking(&refs[o], &y_0[o], c.delay).rms;
-        let com = tracking(&refs[o], &y_c[o], c.delay).rms;
+    for (o, (unc, com, _)) in track_at(&truth, &fitted, &refs, ts).into_iter().enumerate() {
         println!("2-DoF fitted, y{}: {unc:.4} -> {com:.4}", o + 1);
         assert!(unc / com >= 10.0, "y{}: {unc} -> {com}", o + 1);
     }
+}
+
+/// A NARX model from the default identifier (on a noisy record of the plant that covers the
+/// band of the references: a slow sine under a 0.5-60 Hz multisine; with the grey-box base the
+/// identifier chooses) and the network alone (the base not tried): the inverse, found by root
+/// finding on the model's newest input, makes the model follow the reference to rounding, and
+/// the plant to the model's accuracy, on references the record did not contain.
+#[test]
+fn a_narx_model_from_identify_compensates_the_plant_it_was_identified_on() {
+    use hystbench::narx::NarxConfig;
+    let scenario = r#"{"name": "rich", "sampling_period_s": 0.0001, "samples": 40000,
+        "noise_std": 0.01, "seed": 3, "inputs": [{"sum": [
+            {"sine": {"amplitude": 22.0, "frequency_hz": 0.9}},
+            {"multisine": {"rms": 5.0, "f_min_hz": 0.5, "f_max_hz": 60.0}}]}]}"#;
+    let sc = ScenarioSpec::parse(Path::new("rich.json"), scenario)
+        .unwrap()
+        .check(Path::new("rich.json"))
+        .unwrap();
+    for (name, greybox, floor) in [
+        ("prandtl_ishlinskii_piezo.json", true, 5.0),
+        ("bouc_wen_piezo.json", true, 5.0),
+        ("bouc_wen_piezo.json", false, 5.0),
+        // the network alone models this loop less well: its inverse is exact to the model,
+        // and what it does on the plant is printed, not asserted (0.8-1.8x)
+        ("prandtl_ishlinskii_piezo.json", false, 0.0),
+    ] {
+        let truth = plant(name);
+        let rec = simulate_scenario(&truth, &sc, None).unwrap().record;
+        let mut cfg = NarxConfig::new(rec.input_names(), rec.output_names());
+        cfg.robust.try_greybox = greybox;
+        let m = cfg.fit(&rec).unwrap();
+        for (kind, r) in references(20.0, 20_000).into_iter().take(2) {
+            // exact to the model but for a few samples (where a base and a network of
+            // different delays meet, the one-step inverse can miss a sample or two)
+            let c = compensate(&m, &[&r], TS, &CompensateOptions::default()).unwrap();
+            let range = hystbench::metrics::ptp(&r);
+            let off = (c.delay + c.seeded..r.len())
+                .filter(|&k| (c.model_output[0][k] - r[k]).abs() > 1e-6 * range)
+                .count();
+            assert!(off * 1000 <= r.len(), "{name} {kind}: {off} samples off");
+            let [(unc, com, range)] = track(&truth, &m, &[r])[..] else {
+                unreachable!()
+            };
+            println!(
+                "{name} NARX (grey-box base tried: {greybox}), {kind}: {unc:.4} -> {com:.4} ({:.1}x, range {range:.1})",
+                unc / com
+            );
+            assert!(
+                unc / com >= floor,
+                "{name} {greybox} {kind}: {unc} -> {com}"
+            );
+        }
+        if name == "bouc_wen_piezo.json" && !greybox {
+            narx_from_the_command_line(&m, name);
+        }
+    }
+}
+
+/// `compensate` and `track` take a NARX model file; a reference at another sampling period
+/// than the model's training record is refused.
+fn narx_from_the_command_line(m: &hystbench::narx::FittedNarx, plant_name: &str) {
+    use std::process::Command;
+    let bin = env!("CARGO_BIN_EXE_hystbench");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = tempfile::tempdir().unwrap();
+    let at = |f: &str| dir.path().join(f).to_string_lossy().into_owned();
+    std::fs::write(at("narx.json"), m.to_json()).unwrap();
+    let write_ref = |file: &str, ts: f64| {
+        let mut csv = String::from("t,y\n");
+        for (k, v) in references(20.0, 5_000)[1].1.iter().enumerate() {
+            csv += &format!("{},{v}\n", k as f64 * ts);
+        }
+        std::fs::write(at(file), &csv).unwrap();
+    };
+    write_ref("ref.csv", TS);
+    write_ref("ref_2x.csv", 2.0 * TS);
+    let run = |args: &[&str]| Command::new(bin).args(args).output().unwrap();
+    let o = run(&[
+        "compensate",
+        "--model",
+        &at("narx.json"),
+        "--reference",
+        &at("ref.csv"),
+        "--out",
+        &at("u.csv"),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["delay"], m.config.decimation * m.config.lags.delay, "{v}");
+    assert_eq!(
+        std::fs::read_to_string(at("u.csv"))
+            .unwrap()
+            .lines()
+            .count(),
+        5_001
+    );
+    let plant = root.join("plants").join(plant_name);
+    let o = run(&[
+        "track",
+        "--plant",
+        &plant.to_string_lossy(),
+        "--model",
+        &at("narx.json"),
+        "--reference",
+        &at("ref.csv"),
+        "--out",
+        &at("track"),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["outputs"][0]["ratio"].as_f64().unwrap() >= 5.0, "{v}");
+    let o = run(&[
+        "compensate",
+        "--model",
+        &at("narx.json"),
+        "--reference",
+        &at("ref_2x.csv"),
+        "--out",
+        &at("u2.csv"),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("sampling period"),
+        "{err}"
+    );
+    assert!(!dir.path().join("u2.csv").exists());
 }

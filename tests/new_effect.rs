@@ -97,7 +97,7 @@ static SQUARE: FeatureKind = FeatureKind {
     params: &[],
     valid: |_| true,
     label: |n, _| format!("{n}^2"),
-    compute: |u, _, _| square(u),
+    operator: |_, _| Box::new(Square { c: 1.0 }),
 };
 
 /// The grey-box term: one column u^2, its coefficient free.

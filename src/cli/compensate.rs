@@ -1,18 +1,19 @@
 //! `hystbench compensate`: the input that makes a model follow a reference.
 
-use hystbench::compensate::{compensate, CompensateOptions, Compensation};
+use hystbench::compensate::{compensate_stepped, CompensateOptions, Compensation, Named};
 use hystbench::data::{read_csv, write_csv_atomic};
-use hystbench::plant::Plant;
+use hystbench::model::{load_model, Model};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Compute the feedforward input that makes a model's output follow a reference.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "The model is inverted sample by sample (root finding on a copy of it, with a preview of its relative degree: one sample through second-order dynamics). Example:\n  hystbench compensate --model plants/prandtl_ishlinskii_piezo.json --reference ref.csv --out u.csv --limits -10:150\nSee docs/compensation.md."
+    after_help = "The model is inverted sample by sample (root finding on its newest input, on a copy of it, with a preview of its relative degree: one sample through second-order dynamics or a NARX model's input delay). Example:\n  hystbench compensate --model plants/prandtl_ishlinskii_piezo.json --reference ref.csv --out u.csv --limits -10:150\nSee docs/compensation.md."
 )]
 pub struct Args {
-    /// The model: a plant file or a grey-box model (`hystbench fit`).
+    /// The model: a plant file, a grey-box model (`hystbench fit`) or a NARX model
+    /// (`hystbench identify`).
     #[arg(long)]
     pub model: PathBuf,
     /// The reference: a CSV with a time column and one column per model output.
@@ -37,26 +38,6 @@ pub struct Args {
     pub json: bool,
 }
 
-/// A model file as a plant: a plant file, or a grey-box model's fitted plant.
-pub fn model_plant(path: &Path) -> anyhow::Result<(Plant, Option<f64>)> {
-    if let Ok(m) = hystbench::graybox::FittedGreyBox::load(path) {
-        return Ok((m.plant.clone(), Some(m.fit.sampling_period_s)));
-    }
-    match Plant::from_file(path) {
-        Ok(p) => Ok((p, None)),
-        Err(e) => {
-            let text = std::fs::read_to_string(path).unwrap_or_default();
-            if text.contains(hystbench::narx::model::FORMAT) {
-                anyhow::bail!(
-                    "{}: a NARX model cannot be inverted by `compensate` yet; fit a grey-box model (`hystbench fit`) of the same record and compensate with it",
-                    path.display()
-                )
-            }
-            Err(e.into())
-        }
-    }
-}
-
 /// The reference signals (one per model output), their time column and sampling period.
 pub struct Reference {
     pub time_name: String,
@@ -69,23 +50,23 @@ pub struct Reference {
 /// Read `path`'s columns for the model's outputs.
 pub fn read_reference(
     path: &Path,
-    plant: &Plant,
+    model: &dyn Model,
     columns: Option<&[String]>,
-    model_ts: Option<f64>,
 ) -> anyhow::Result<Reference> {
     let rec = read_csv(path)?;
+    let outputs = model.output_names();
     let names: Vec<String> = match columns {
         Some(c) => c.to_vec(),
-        None => plant.outputs.clone(),
+        None => outputs.clone(),
     };
-    if names.len() != plant.outputs.len() {
+    if names.len() != outputs.len() {
         anyhow::bail!(
             "{}: {} reference columns ({}) for {} model outputs ({}); give one per output with --columns",
             path.display(),
             names.len(),
             names.join(", "),
-            plant.outputs.len(),
-            plant.outputs.join(", ")
+            outputs.len(),
+            outputs.join(", ")
         );
     }
     let signals = names
@@ -109,7 +90,7 @@ pub fn read_reference(
     let Some(ts) = rec.sampling_period()? else {
         anyhow::bail!("{}: the time column has no steps", path.display());
     };
-    if let Some(m) = model_ts {
+    if let Some(m) = model.sampling_period() {
         if ((ts - m) / m).abs() > 1e-6 {
             anyhow::bail!(
                 "{}: sampling period {ts} s, but the model was fitted at {m} s: resample the reference to the model's period",
@@ -161,39 +142,47 @@ pub fn parse_limits(
         .collect()
 }
 
-/// Warnings for the inputs that were clipped.
+/// Warnings for the inputs that were clipped, and where the model cannot reach the reference.
 pub fn clipped_lines(c: &Compensation, time: &[f64]) -> Vec<String> {
-    c.clipped
-        .iter()
-        .filter(|k| k.count > 0)
-        .map(|k| {
-            let at = |i: Option<usize>| i.and_then(|i| time.get(i)).copied().unwrap_or(0.0);
-            format!(
-                "warning: input `{}` clipped at the actuator's limits on {} samples ({:.2} %), from t = {} s to t = {} s: the reference is beyond what the actuator reaches there",
-                k.input,
-                k.count,
-                100.0 * k.share,
-                at(k.first),
-                at(k.last)
-            )
-        })
-        .collect()
+    let at = |i: Option<usize>| i.and_then(|i| time.get(i)).copied().unwrap_or(0.0);
+    let clipped = c.clipped.iter().filter(|k| k.count > 0).map(|k| {
+        format!(
+            "warning: input `{}` clipped at the actuator's limits on {} samples ({:.2} %), from t = {} s to t = {} s: the reference is beyond what the actuator reaches there",
+            k.input,
+            k.count,
+            100.0 * k.share,
+            at(k.first),
+            at(k.last)
+        )
+    });
+    let unreachable = c.unreachable.iter().filter(|k| k.count > 0).map(|k| {
+        format!(
+            "warning: on {} samples ({:.2} %), from t = {} s to t = {} s, no value of input `{}` brings the model's output to the reference (beyond the range the model reaches, e.g. a saturating sensor): the closest value is used",
+            k.count,
+            100.0 * k.share,
+            at(k.first),
+            at(k.last),
+            k.input
+        )
+    });
+    clipped.chain(unreachable).collect()
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     hystbench::data::check_writable(&a.out, a.force)?;
-    let (plant, model_ts) = model_plant(&a.model)?;
-    let r = read_reference(&a.reference, &plant, a.columns.as_deref(), model_ts)?;
+    let model = load_model(&a.model)?;
+    let r = read_reference(&a.reference, model.as_ref(), a.columns.as_deref())?;
     let opts = CompensateOptions {
-        limits: parse_limits(a.limits.as_deref(), &plant.inputs)?,
+        limits: parse_limits(a.limits.as_deref(), &model.input_names())?,
         ..Default::default()
     };
     let refs: Vec<&[f64]> = r.signals.iter().map(Vec::as_slice).collect();
     let t0 = Instant::now();
-    let c = compensate(&plant, &refs, r.ts, &opts)?;
+    let named = Named::of(model.as_ref(), r.ts, &a.model)?;
+    let c = compensate_stepped(&named, &refs, &opts)?;
     let seconds = t0.elapsed().as_secs_f64();
     let mut names = vec![r.time_name.clone()];
-    names.extend(plant.inputs.iter().cloned());
+    names.extend(named.inputs.iter().cloned());
     let mut cols = vec![r.time.clone()];
     cols.extend(c.inputs.iter().cloned());
     write_csv_atomic(&a.out, &names, &cols, a.force)?;
@@ -203,7 +192,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             "delay": c.delay,
             "samples": n,
             "seconds": seconds,
+            "seeded": c.seeded,
             "clipped": c.clipped,
+            "unreachable": c.unreachable,
         }))?);
     } else {
         for w in clipped_lines(&c, &r.time) {

@@ -1,8 +1,11 @@
 //! `hystbench track`: a plant (the ground truth) driven with and without a model's compensator.
 
-use crate::cli::compensate::{clipped_lines, model_plant, parse_limits, read_reference};
-use hystbench::compensate::{compensate, static_gain, tracking, CompensateOptions, OutputTracking};
+use crate::cli::compensate::{clipped_lines, parse_limits, read_reference};
+use hystbench::compensate::{
+    compensate_stepped, static_gain, tracking, CompensateOptions, Named, OutputTracking,
+};
 use hystbench::data::{IoRecord, Signal};
+use hystbench::model::load_model;
 use hystbench::plot::{loop_figure, time_figure, LoopOptions, PlotRecord};
 use std::path::PathBuf;
 
@@ -10,13 +13,13 @@ use std::path::PathBuf;
 /// the tracking errors.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Without compensation the plant gets the reference divided by the model's static gain (the slope and offset of its output against its input over a slow triangle, as a user calibrates). Example:\n  hystbench track --plant plants/bouc_wen_piezo.json --model model.json --reference ref.csv --out track\nSee docs/compensation.md."
+    after_help = "Without compensation the plant gets the reference divided by the plant's static gain (the slope and offset of its output against its input over a slow triangle, as a user calibrates the actuator; the model's when the plant is an ODE). Example:\n  hystbench track --plant plants/bouc_wen_piezo.json --model model.json --reference ref.csv --out track\nSee docs/compensation.md."
 )]
 pub struct Args {
     /// The plant that plays the actuator (a plant file).
     #[arg(long)]
     pub plant: PathBuf,
-    /// The model that is inverted (a plant file or a grey-box model).
+    /// The model that is inverted (a plant file, a grey-box model or a NARX model).
     #[arg(long)]
     pub model: PathBuf,
     /// The reference: a CSV with a time column and one column per output.
@@ -79,16 +82,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 /// Compensate, run the plant both ways, write the figures and `track.json`.
 pub fn execute(a: &Args) -> anyhow::Result<TrackResult> {
     let truth = hystbench::plant::Plant::from_file(&a.plant)?;
-    let (model, model_ts) = model_plant(&a.model)?;
-    if truth.inputs.len() != model.inputs.len() || truth.outputs.len() != model.outputs.len() {
+    let model = load_model(&a.model)?;
+    let (input_names, output_names) = (model.input_names(), model.output_names());
+    if truth.inputs.len() != input_names.len() || truth.outputs.len() != output_names.len() {
         anyhow::bail!(
             "{} has {} inputs and {} outputs, {} has {} and {}: the model must be of the plant",
             a.plant.display(),
             truth.inputs.len(),
             truth.outputs.len(),
             a.model.display(),
-            model.inputs.len(),
-            model.outputs.len()
+            input_names.len(),
+            output_names.len()
         );
     }
     let files = [
@@ -103,28 +107,34 @@ pub fn execute(a: &Args) -> anyhow::Result<TrackResult> {
             hystbench::data::check_writable(&p, false)?;
         }
     }
-    let r = read_reference(&a.reference, &model, a.columns.as_deref(), model_ts)?;
+    let r = read_reference(&a.reference, model.as_ref(), a.columns.as_deref())?;
     let opts = CompensateOptions {
-        limits: parse_limits(a.limits.as_deref(), &model.inputs)?,
+        limits: parse_limits(a.limits.as_deref(), &input_names)?,
         ..Default::default()
     };
     let refs: Vec<&[f64]> = r.signals.iter().map(Vec::as_slice).collect();
-    let c = compensate(&model, &refs, r.ts, &opts)?;
+    let named = Named::of(model.as_ref(), r.ts, &a.model)?;
+    let c = compensate_stepped(&named, &refs, &opts)?;
     let uc: Vec<&[f64]> = c.inputs.iter().map(Vec::as_slice).collect();
     let y_c = truth.simulate(&uc, r.ts)?;
-    // without compensation: each input is its reference through the inverse static gain
-    let u0: Vec<Vec<f64>> = (0..model.inputs.len())
+    // without compensation: each input is its reference through the inverse of the plant's
+    // static gain (what a user calibrates on the actuator; the model's for an ODE plant)
+    let calibrated = truth.state(r.ts)?;
+    let u0: Vec<Vec<f64>> = (0..input_names.len())
         .map(|j| {
             let o = j.min(r.signals.len() - 1);
-            let (g, b) = static_gain(&model, j, o, &c.inputs[j], r.ts)?;
+            let (g, b) = match &calibrated {
+                Some(p) => static_gain(p, j, o, &c.inputs[j]),
+                None => static_gain(&named.state, j, o, &c.inputs[j]),
+            };
             // the same actuator range as the compensated run
             let (lo, hi) = opts.limits[j].unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
-            Ok(r.signals[o]
+            r.signals[o]
                 .iter()
                 .map(|v| ((v - b) / g).clamp(lo, hi))
-                .collect())
+                .collect()
         })
-        .collect::<anyhow::Result<_>>()?;
+        .collect();
     let u0r: Vec<&[f64]> = u0.iter().map(Vec::as_slice).collect();
     let y_0 = truth.simulate(&u0r, r.ts)?;
     // the preview's first samples cannot be tracked: scored after them
@@ -134,7 +144,7 @@ pub fn execute(a: &Args) -> anyhow::Result<TrackResult> {
             let unc = tracking(&r.signals[o], &y_0[o], from);
             let com = tracking(&r.signals[o], &y_c[o], from);
             OutputTracking {
-                output: model.outputs[o].clone(),
+                output: output_names[o].clone(),
                 uncompensated: unc,
                 compensated: com,
                 ratio: unc.rms / com.rms.max(f64::MIN_POSITIVE),
@@ -158,8 +168,7 @@ pub fn execute(a: &Args) -> anyhow::Result<TrackResult> {
                 values: s.clone(),
             })
             .collect(),
-        outputs: model
-            .outputs
+        outputs: output_names
             .iter()
             .zip(y)
             .map(|(n, s)| Signal {
@@ -215,7 +224,9 @@ pub fn execute(a: &Args) -> anyhow::Result<TrackResult> {
     let json = serde_json::json!({
         "delay": c.delay,
         "samples": r.time.len(),
+        "seeded": c.seeded,
         "clipped": c.clipped,
+        "unreachable": c.unreachable,
         "outputs": outputs,
     });
     hystbench::data::write_atomic(

@@ -1,3 +1,4 @@
+use crate::model::ModelError;
 use crate::plant::PlantError;
 
 /// Why a model cannot be turned into a compensating input.
@@ -6,8 +7,10 @@ use crate::plant::PlantError;
 pub enum CompensateError {
     #[error(transparent)]
     Plant(#[from] PlantError),
-    #[error("plant `{plant}` is integrated as an ODE over a whole record and cannot be stepped one sample at a time: compensate with a chain plant or a grey-box model of it")]
-    NotAChain { plant: String },
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    #[error("{model} is integrated as an ODE over a whole record and cannot be stepped one sample at a time: compensate with a chain plant, a grey-box model or a NARX model of it")]
+    NotStepped { model: String },
     #[error("the model has {expected} outputs ({names}) but {found} reference signals were given; name the reference columns with --columns")]
     ReferenceCount {
         expected: usize,
@@ -22,8 +25,8 @@ pub enum CompensateError {
     },
     #[error("the model has {inputs} inputs for {outputs} outputs: a reference per output does not fix every input")]
     MoreInputsThanOutputs { inputs: usize, outputs: usize },
-    #[error("no value of input `{input}` brings output `{output}` to {target} at sample {sample}: the model is not monotone in its newest input there (or diverges); check the model, or give actuator limits with --limits")]
-    NoRoot {
+    #[error("the model's output `{output}` is not finite at sample {sample} for the values of input `{input}` that would bring it to {target}: the model diverges there (a NARX model leaving its training range); check it with `hystbench compare`, or keep the input within the range it was trained on with --limits")]
+    Diverged {
         input: String,
         output: String,
         sample: usize,

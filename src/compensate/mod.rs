@@ -39,8 +39,36 @@
 mod error;
 pub use error::CompensateError;
 
-use crate::plant::{Plant, PlantState};
+use crate::model::{Model, ModelState, Stepped};
 use serde::Serialize;
+use std::path::Path;
+
+/// A stepped model with the names of its inputs and outputs.
+pub struct Named<S> {
+    pub state: S,
+    pub inputs: Vec<String>,
+    pub outputs: Vec<String>,
+    /// Per input, where the model is known ([`Model::known_inputs`]): the inverse looks for
+    /// inputs there only.
+    pub known: Vec<Option<(f64, f64)>>,
+}
+
+impl Named<ModelState> {
+    /// Any model at rest at sampling period `ts` (`path` names its file in errors).
+    pub fn of(model: &dyn Model, ts: f64, path: &Path) -> Result<Self, CompensateError> {
+        let Some(state) = model.stepped(ts, path)? else {
+            return Err(CompensateError::NotStepped {
+                model: model.describe(),
+            });
+        };
+        Ok(Named {
+            state,
+            inputs: model.input_names(),
+            outputs: model.output_names(),
+            known: model.known_inputs(),
+        })
+    }
+}
 
 /// Knobs of the compensator.
 #[derive(Debug, Clone, PartialEq)]
@@ -63,7 +91,7 @@ impl Default for CompensateOptions {
     }
 }
 
-/// Where one input was clipped at the actuator's limits.
+/// Where one input was clipped at the actuator's limits (or could not reach the reference).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Clipped {
     pub input: String,
@@ -82,8 +110,15 @@ pub struct Compensation {
     pub inputs: Vec<Vec<f64>>,
     /// The preview: the input at sample k aims at the reference at k + delay.
     pub delay: usize,
+    /// Samples from rest over which the model's outputs do not answer its inputs (a NARX
+    /// model's seed; 0 for the effect library's models): the input stays at rest there.
+    pub seeded: usize,
     /// Per input, where it was clipped.
     pub clipped: Vec<Clipped>,
+    /// Per input, where no input value brings the model's output to the reference (beyond a
+    /// saturating model's range, or beyond the inputs a data-driven model was trained on):
+    /// the closest input is used.
+    pub unreachable: Vec<Clipped>,
     /// The model's output under the compensating input (what it promises).
     pub model_output: Vec<Vec<f64>>,
 }
@@ -91,8 +126,14 @@ pub struct Compensation {
 /// The plant's relative degree: the fewest samples after which a change of an input shows in
 /// an output (at most 4), probed from rest with pushes of both signs growing from `scale` by
 /// decades (a play operator with a threshold above a small push does not move).
-fn relative_degree(state: &PlantState, scale: &[f64]) -> usize {
+fn relative_degree<S: Stepped>(state: &S, scale: &[f64]) -> usize {
     let (ni, no) = (state.inputs(), state.outputs());
+    // past the seed, where the outputs answer the inputs
+    let mut state = state.clone();
+    let mut y = vec![0.0; no];
+    for _ in 0..state.seeded() {
+        state.step(&vec![0.0; ni], &mut y);
+    }
     for d in 0..=4 {
         for j in 0..ni {
             for m in 0..8 {
@@ -119,26 +160,37 @@ fn relative_degree(state: &PlantState, scale: &[f64]) -> usize {
 
 /// Output `o` at `delay` samples after sample k, from a copy of `state`, when input `j` takes
 /// value `v` (the other inputs as in `u`), all held over the preview.
-fn ahead(state: &PlantState, u: &[f64], j: usize, v: f64, delay: usize, o: usize) -> f64 {
-    let mut s = state.clone();
+fn ahead<S: Stepped>(state: &S, u: &[f64], j: usize, v: f64, delay: usize, o: usize) -> f64 {
     let mut uu = u.to_vec();
     uu[j] = v;
-    let mut y = vec![0.0; s.outputs()];
-    for _ in 0..=delay {
-        s.step(&uu, &mut y);
-    }
-    y[o]
+    state.ahead(&uu, delay, o)
 }
 
-/// The root of a monotone `g` near `start`, within `limits`: (value, clipped). `step` is the
-/// first bracketing step; `tol` the accepted |g|.
+/// How a sample's root finding ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Reach {
+    /// The output meets the reference.
+    Met,
+    /// The input stopped at the actuator's limit.
+    Clipped,
+    /// No input brings the output to the reference (a saturating model asked beyond its
+    /// range): the input that comes closest.
+    Unreachable,
+}
+
+/// The root of a monotone `g` near `start`, within `limits`, and the slope of `g` there.
+/// `slope` is the slope at the previous sample's root (NaN: unknown): its secant step is tried
+/// first, and usually brackets the root within a hair of it. `step` is the first bracketing
+/// step otherwise; `tol` the accepted |g|. `None`: `g` is not finite where the root must be (the
+/// model diverged).
 fn solve(
     g: &dyn Fn(f64) -> f64,
     start: f64,
     step: f64,
+    slope: f64,
     limits: Option<(f64, f64)>,
     tol: f64,
-) -> Option<(f64, bool)> {
+) -> Option<(f64, Reach, f64)> {
     let (lo_lim, hi_lim) = limits.unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
     let clamp = |v: f64| v.clamp(lo_lim, hi_lim);
     let x0 = clamp(start);
@@ -147,15 +199,71 @@ fn solve(
         return None;
     }
     if g0.abs() <= tol {
-        return Some((x0, false));
+        return Some((x0, Reach::Met, slope));
     }
-    // bracket: expand in both directions until g changes sign
+    // bracket: the secant step, else expand in both directions until g changes sign,
+    // keeping the closest miss
     let (mut a, mut ga) = (x0, g0);
     let mut b = x0;
     let mut gb = g0;
+    let mut closest = (x0, g0.abs());
     let mut h = step;
     let mut found = false;
+    if slope.is_finite() && slope != 0.0 {
+        // secant steps from the last sample's slope, while |g| falls fast; the nearest points
+        // on each side of the root are kept as the bracket
+        let (mut xp, mut gp) = (x0, g0);
+        let mut s = slope;
+        let mut other: Option<(f64, f64)> = None;
+        for _ in 0..4 {
+            let x1 = clamp(xp - gp / s);
+            if x1 == xp {
+                break;
+            }
+            let g1 = g(x1);
+            if !g1.is_finite() {
+                break;
+            }
+            if g1.abs() <= tol {
+                return Some((x1, Reach::Met, s));
+            }
+            if g1.signum() != gp.signum() {
+                other = Some((xp, gp));
+            }
+            if g1.abs() < closest.1 {
+                closest = (x1, g1.abs());
+            }
+            let fell = g1.abs() < 0.5 * gp.abs();
+            let s1 = (g1 - gp) / (x1 - xp);
+            (xp, gp) = (x1, g1);
+            if !(fell && s1.is_finite() && s1 != 0.0) {
+                break;
+            }
+            s = s1;
+        }
+        match other {
+            // a root between the last point and one on the other side
+            Some((xo, go)) if go.signum() != gp.signum() => {
+                (a, ga, b, gb) = (xo, go, xp, gp);
+                found = true;
+            }
+            _ => {
+                // still on the start's side: bracket from there, steps a little longer
+                // than the distance covered
+                (a, ga) = (xp, gp);
+                if gp.signum() != g0.signum() {
+                    (b, gb) = (x0, g0);
+                    found = true;
+                } else {
+                    h = (2.0 * (xp - x0).abs()).max(f64::MIN_POSITIVE);
+                }
+            }
+        }
+    }
     for _ in 0..80 {
+        if found {
+            break;
+        }
         let up = clamp(x0 + h);
         let gu = g(up);
         if gu.is_finite() && gu.signum() != g0.signum() {
@@ -170,18 +278,33 @@ fn solve(
             found = true;
             break;
         }
+        for (x, v) in [(up, gu), (down, gd)] {
+            if v.is_finite() && v.abs() < closest.1 {
+                closest = (x, v.abs());
+            }
+        }
         if up == hi_lim && down == lo_lim {
             // the reference is beyond what the limits reach: the limit nearer to it
             let best = if gu.abs() < gd.abs() { up } else { down };
-            return Some((best, true));
+            return Some((best, Reach::Clipped, f64::NAN));
         }
         h *= 2.0;
     }
     if !found {
-        return None;
+        return Some((closest.0, Reach::Unreachable, f64::NAN));
     }
-    // Illinois regula falsi on [a, b]
+    // Illinois regula falsi on [a, b]; the slope from the last two evaluations (the
+    // Illinois halvings only steer the steps)
     let mut side = 0i32;
+    let mut prev = (b, gb);
+    let secant = |(xa, fa): (f64, f64), (xb, fb): (f64, f64)| {
+        let s = (fb - fa) / (xb - xa);
+        if s.is_finite() && s != 0.0 {
+            s
+        } else {
+            slope
+        }
+    };
     for _ in 0..200 {
         let c = (a * gb - b * ga) / (gb - ga);
         let c = if c.is_finite() { c } else { 0.5 * (a + b) };
@@ -190,8 +313,9 @@ fn solve(
             return None;
         }
         if gc.abs() <= tol || (b - a).abs() <= 1e-15 * (1.0 + a.abs().max(b.abs())) {
-            return Some((c, false));
+            return Some((c, Reach::Met, secant(prev, (c, gc))));
         }
+        prev = (c, gc);
         if gc.signum() == gb.signum() {
             (b, gb) = (c, gc);
             if side == -1 {
@@ -207,28 +331,53 @@ fn solve(
         }
     }
     let c = if ga.abs() < gb.abs() { a } else { b };
-    Some((c, false))
+    Some((c, Reach::Met, slope))
 }
 
-/// The input that makes `plant` (run from rest at sampling period `ts`) follow `reference`
-/// (one signal per plant output, equal lengths).
+/// The input that makes `model` (run from rest at sampling period `ts`) follow `reference`
+/// (one signal per model output, equal lengths). Any model that runs a sample at a time: a
+/// chain plant, a grey-box model, a NARX model (root finding on its newest input; over its
+/// seed, its first samples, the outputs do not answer the inputs and the input stays at rest).
 pub fn compensate(
-    plant: &Plant,
+    model: &dyn Model,
     reference: &[&[f64]],
     ts: f64,
     opts: &CompensateOptions,
 ) -> Result<Compensation, CompensateError> {
-    let Some(state) = plant.state(ts)? else {
-        return Err(CompensateError::NotAChain {
-            plant: plant.name.clone(),
-        });
-    };
+    compensate_stepped(&Named::of(model, ts, Path::new("model"))?, reference, opts)
+}
+
+/// Where each input's samples were marked (clipped, unreachable).
+fn marks(at: &[Vec<usize>], names: &[String], n: usize) -> Vec<Clipped> {
+    at.iter()
+        .zip(names)
+        .map(|(c, name)| Clipped {
+            input: name.clone(),
+            share: if n == 0 {
+                0.0
+            } else {
+                c.len() as f64 / n as f64
+            },
+            first: c.first().copied(),
+            last: c.last().copied(),
+            count: c.len(),
+        })
+        .collect()
+}
+
+/// The input that makes a stepped model follow `reference` (one signal per output).
+pub fn compensate_stepped<S: Stepped>(
+    model: &Named<S>,
+    reference: &[&[f64]],
+    opts: &CompensateOptions,
+) -> Result<Compensation, CompensateError> {
+    let state = &model.state;
     let (ni, no) = (state.inputs(), state.outputs());
     if reference.len() != no {
         return Err(CompensateError::ReferenceCount {
             expected: no,
             found: reference.len(),
-            names: plant.outputs.join(", "),
+            names: model.outputs.join(", "),
         });
     }
     if ni > no {
@@ -240,7 +389,7 @@ pub fn compensate(
     let n = reference.first().map_or(0, |r| r.len());
     if let Some((o, r)) = reference.iter().enumerate().find(|(_, r)| r.len() != n) {
         return Err(CompensateError::ReferenceLength {
-            output: plant.outputs[o].clone(),
+            output: model.outputs[o].clone(),
             found: r.len(),
             expected: n,
         });
@@ -251,11 +400,23 @@ pub fn compensate(
         .collect();
     // a first step for the brackets: a hundredth of the input a unit static gain would need
     let scale: Vec<f64> = (0..ni).map(|j| (0.01 * ranges[j]).max(1e-6)).collect();
-    let delay = relative_degree(&state, &scale);
-    let limits: Vec<Option<(f64, f64)>> = (0..ni)
+    let delay = relative_degree(state, &scale);
+    let seeded = state.seeded();
+    let actuator: Vec<Option<(f64, f64)>> = (0..ni)
         .map(|j| opts.limits.get(j).copied().flatten())
         .collect();
-    let mut s = state;
+    // the search: the actuator's range within the range where the model is known
+    let limits: Vec<Option<(f64, f64)>> = (0..ni)
+        .map(
+            |j| match (actuator[j], model.known.get(j).copied().flatten()) {
+                (Some((a, b)), Some((c, d))) => Some((a.max(c), b.min(d)))
+                    .filter(|(l, h)| l < h)
+                    .or(Some((a, b))),
+                (a, k) => a.or(k),
+            },
+        )
+        .collect();
+    let mut s = state.clone();
     let mut u = vec![0.0; ni];
     for (j, l) in limits.iter().enumerate() {
         if let Some((lo, hi)) = l {
@@ -265,37 +426,54 @@ pub fn compensate(
     let mut inputs = vec![Vec::with_capacity(n); ni];
     let mut model_output = vec![Vec::with_capacity(n); no];
     let mut clipped_at: Vec<Vec<usize>> = vec![Vec::new(); ni];
+    let mut unreachable_at: Vec<Vec<usize>> = vec![Vec::new(); ni];
     let mut y = vec![0.0; no];
+    let mut slope = vec![f64::NAN; ni];
     for k in 0..n {
         let at = (k + delay).min(n - 1);
-        let target: Vec<f64> = reference.iter().map(|r| r[at]).collect();
-        let mut clipped = vec![false; ni];
-        let sweeps = if ni == 1 { 1 } else { opts.sweeps.max(1) };
-        for _ in 0..sweeps {
+        // over the seed the outputs do not answer: the input stays at rest
+        if k + delay >= seeded {
+            let target: Vec<f64> = reference.iter().map(|r| r[at]).collect();
+            let mut reach = vec![Reach::Met; ni];
+            let sweeps = if ni == 1 { 1 } else { opts.sweeps.max(1) };
+            for _ in 0..sweeps {
+                for j in 0..ni {
+                    let o = j.min(no - 1);
+                    let tol = opts.tolerance * (1.0 + ranges[o]);
+                    let g = |v: f64| ahead(&s, &u, j, v, delay, o) - target[o];
+                    match solve(&g, u[j], scale[j], slope[j], limits[j], tol) {
+                        Some((v, r, sl)) => {
+                            u[j] = v;
+                            slope[j] = sl;
+                            // stopped at a bound that is not the actuator's: the model
+                            // does not reach the reference within the inputs it knows
+                            let at_actuator =
+                                actuator[j].is_some_and(|(lo, hi)| v <= lo || v >= hi);
+                            reach[j] = match r {
+                                Reach::Clipped if !at_actuator => Reach::Unreachable,
+                                r => r,
+                            };
+                        }
+                        None => {
+                            return Err(CompensateError::Diverged {
+                                input: model.inputs[j].clone(),
+                                output: model.outputs[o].clone(),
+                                sample: k,
+                                target: target[o],
+                            })
+                        }
+                    }
+                }
+            }
             for j in 0..ni {
-                let o = j.min(no - 1);
-                let tol = opts.tolerance * (1.0 + ranges[o]);
-                let g = |v: f64| ahead(&s, &u, j, v, delay, o) - target[o];
-                match solve(&g, u[j], scale[j], limits[j], tol) {
-                    Some((v, c)) => {
-                        u[j] = v;
-                        clipped[j] = c;
-                    }
-                    None => {
-                        return Err(CompensateError::NoRoot {
-                            input: plant.inputs[j].clone(),
-                            output: plant.outputs[o].clone(),
-                            sample: k,
-                            target: target[o],
-                        })
-                    }
+                match reach[j] {
+                    Reach::Met => {}
+                    Reach::Clipped => clipped_at[j].push(k),
+                    Reach::Unreachable => unreachable_at[j].push(k),
                 }
             }
         }
         for j in 0..ni {
-            if clipped[j] {
-                clipped_at[j].push(k);
-            }
             inputs[j].push(u[j]);
         }
         s.step(&u, &mut y);
@@ -303,25 +481,12 @@ pub fn compensate(
             model_output[o].push(*v);
         }
     }
-    let clipped = clipped_at
-        .iter()
-        .enumerate()
-        .map(|(j, c)| Clipped {
-            input: plant.inputs[j].clone(),
-            share: if n == 0 {
-                0.0
-            } else {
-                c.len() as f64 / n as f64
-            },
-            first: c.first().copied(),
-            last: c.last().copied(),
-            count: c.len(),
-        })
-        .collect();
     Ok(Compensation {
         inputs,
         delay,
-        clipped,
+        seeded,
+        clipped: marks(&clipped_at, &model.inputs, n),
+        unreachable: marks(&unreachable_at, &model.inputs, n),
         model_output,
     })
 }
@@ -360,40 +525,35 @@ pub fn tracking(r: &[f64], y: &[f64], from: usize) -> Tracking {
     }
 }
 
-/// The static gain and offset a user calibrates: the least-squares line of the plant's
-/// output against its input over a slow triangle (one period over the reference's duration,
-/// at most 20,000 samples) spanning the compensating input's range (1 to 99 % quantiles, so
-/// that the preview's first samples do not count).
-pub fn static_gain(
-    plant: &Plant,
-    j: usize,
-    o: usize,
-    u: &[f64],
-    ts: f64,
-) -> Result<(f64, f64), CompensateError> {
+/// The static gain and offset a user calibrates: the least-squares line of the model's
+/// output `o` against its input `j` over a slow triangle (one period over the reference's
+/// duration, at most 20,000 samples) spanning the compensating input `u`'s range (1 to 99 %
+/// quantiles, so that the preview's first samples do not count), the other inputs at rest.
+pub fn static_gain<S: Stepped>(model: &S, j: usize, o: usize, u: &[f64]) -> (f64, f64) {
     let mut s: Vec<f64> = u.iter().copied().filter(|v| v.is_finite()).collect();
     if s.is_empty() {
-        return Ok((1.0, 0.0));
+        return (1.0, 0.0);
     }
     s.sort_by(f64::total_cmp);
     let q = |p: f64| s[((s.len() - 1) as f64 * p).round() as usize];
     let (lo, hi) = (q(0.01), q(0.99));
     let n = u.len().clamp(200, 20_000);
-    let tri: Vec<f64> = (0..n)
-        .map(|k| {
-            let x = k as f64 / n as f64;
-            let up = 1.0 - (2.0 * x - 1.0).abs();
-            lo + (hi - lo) * up
-        })
-        .collect();
-    let inputs: Vec<Vec<f64>> = (0..plant.inputs.len())
-        .map(|i| if i == j { tri.clone() } else { vec![0.0; n] })
-        .collect();
-    let refs: Vec<&[f64]> = inputs.iter().map(Vec::as_slice).collect();
-    let y = plant.simulate(&refs, ts)?;
-    let (mu, my) = (crate::metrics::mean(&tri), crate::metrics::mean(&y[o]));
+    let mut m = model.clone();
+    let mut x = vec![0.0; m.inputs()];
+    let mut y = vec![0.0; m.outputs()];
+    let (mut tri, mut out) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for k in 0..n {
+        let up = 1.0 - (2.0 * (k as f64 / n as f64) - 1.0).abs();
+        x[j] = lo + (hi - lo) * up;
+        m.step(&x, &mut y);
+        if k >= m.seeded() && y[o].is_finite() {
+            tri.push(x[j]);
+            out.push(y[o]);
+        }
+    }
+    let (mu, my) = (crate::metrics::mean(&tri), crate::metrics::mean(&out));
     let (mut num, mut den) = (0.0, 0.0);
-    for (a, b) in tri.iter().zip(&y[o]) {
+    for (a, b) in tri.iter().zip(&out) {
         num += (a - mu) * (b - my);
         den += (a - mu) * (a - mu);
     }
@@ -402,13 +562,13 @@ pub fn static_gain(
     } else {
         1.0
     };
-    Ok((g, my - g * mu))
+    (g, my - g * mu)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::plant::PlantSpec;
+    use crate::plant::{Plant, PlantSpec};
     use std::path::Path;
 
     fn plant(name: &str) -> Plant {
@@ -445,6 +605,63 @@ mod tests {
                 .fold(0.0, f64::max);
             assert!(worst < 1e-9, "{name}: delay {}, worst {worst}", c.delay);
         }
+    }
+
+    #[test]
+    fn a_saturating_model_asked_beyond_its_range_says_where_it_cannot_reach() {
+        let text = r#"{"name": "clipped", "inputs": ["u"], "outputs": [{"name": "y",
+            "paths": [{"input": "u", "hysteresis": {"prandtl_ishlinskii":
+                {"linear_weight": 0.8, "thresholds": [2.0], "weights": [0.2]}}}],
+            "saturation": {"upper": 5.0}}]}"#;
+        let path = Path::new("clipped.json");
+        let p = PlantSpec::parse(path, text).unwrap().check(path).unwrap();
+        // up to 8 and back: the sensor reads at most 5
+        let r: Vec<f64> = (0..800)
+            .map(|k| 8.0 * (1.0 - (k as f64 / 400.0 - 1.0).abs()))
+            .collect();
+        let c = compensate(&p, &[&r], 1e-3, &CompensateOptions::default()).unwrap();
+        let un = &c.unreachable[0];
+        let beyond = r.iter().filter(|v| **v > 5.0 + 1e-9).count();
+        assert_eq!(un.count, beyond, "{un:?}");
+        assert_eq!(c.clipped[0].count, 0);
+        assert!(c.inputs[0].iter().all(|v| v.is_finite()));
+        // where it can, the model follows
+        for (k, (y, r)) in c.model_output[0].iter().zip(&r).enumerate() {
+            if *r < 5.0 - 1e-9 {
+                assert!((y - r).abs() < 1e-9, "sample {k}: {y} for {r}");
+            } else {
+                assert!((y - 5.0).abs() < 1e-9, "sample {k}: {y} at the limit");
+            }
+        }
+    }
+
+    /// Along a smooth reference, the previous sample's slope brackets the next root at once:
+    /// far fewer evaluations than growing a bracket from a fixed step.
+    #[test]
+    fn the_secant_start_saves_evaluations_along_a_smooth_reference() {
+        use std::cell::Cell;
+        let count = |use_slope: bool| {
+            let evals = Cell::new(0usize);
+            let (mut x, mut slope) = (0.0, f64::NAN);
+            for k in 0..2000 {
+                let r = 10.0 * (k as f64 * 0.003).sin();
+                let g = |v: f64| {
+                    evals.set(evals.get() + 1);
+                    v * v * v + 2.0 * v - r
+                };
+                let (v, reach, s) = solve(&g, x, 0.1, slope, None, 1e-12 * 11.0).unwrap();
+                assert_eq!(reach, Reach::Met);
+                assert!(g(v).abs() <= 1e-10, "sample {k}");
+                x = v;
+                if use_slope {
+                    slope = s;
+                }
+            }
+            evals.get()
+        };
+        let (with, without) = (count(true), count(false));
+        println!("evaluations: {with} with the slope, {without} without");
+        assert!(with * 3 < without * 2, "{with} vs {without}");
     }
 
     #[test]

@@ -181,15 +181,34 @@ impl Operator for CreepOp {
 /// One Kelvin-Voigt state (a first-order lag of time constant `tau`, exact under a zero-order
 /// hold, starting at the first sample's value).
 pub fn kelvin_voigt_state(x: &[f64], tau: f64, ts: f64) -> Vec<f64> {
-    let a = (-ts / tau).exp();
-    let mut z = x.first().copied().unwrap_or(0.0);
-    x.iter()
-        .map(|&v| {
-            let out = z;
-            z = a * z + (1.0 - a) * v;
-            out
-        })
-        .collect()
+    KelvinVoigtState::new(tau, ts).apply(x)
+}
+
+/// [`kelvin_voigt_state`] one sample at a time.
+#[derive(Debug, Clone)]
+pub struct KelvinVoigtState {
+    a: f64,
+    z: Option<f64>,
+}
+
+impl KelvinVoigtState {
+    pub fn new(tau: f64, ts: f64) -> KelvinVoigtState {
+        KelvinVoigtState {
+            a: (-ts / tau).exp(),
+            z: None,
+        }
+    }
+}
+
+impl Operator for KelvinVoigtState {
+    fn reset(&mut self) {
+        self.z = None;
+    }
+    fn step(&mut self, v: f64) -> f64 {
+        let z = self.z.unwrap_or(v);
+        self.z = Some(self.a * z + (1.0 - self.a) * v);
+        z
+    }
 }
 
 /// Basis bank: slow first-order states of the model's prediction, time constants one per half
@@ -230,7 +249,7 @@ pub static FIRST_ORDER: FeatureKind = FeatureKind {
     params: &["tau_s"],
     valid: |p| p[0].is_finite() && p[0] > 0.0,
     label: |n, p| format!("first_order({n}, tau={:.4} s)", p[0]),
-    compute: |u, p, ts| kelvin_voigt_state(u, p[0], ts),
+    operator: |p, ts| Box::new(KelvinVoigtState::new(p[0], ts)),
 };
 
 /// Creep time constants for the grey-box model: one per decade (powers of ten) from about 5

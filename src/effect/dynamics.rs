@@ -227,17 +227,36 @@ impl Params for Dynamics {
 
 /// A unit-gain second-order resonator on a signal, shifted by its first value so that a
 /// non-zero start does not ring; zeros when it cannot be discretised at `ts`.
-fn resonator(u: &[f64], hz: f64, zeta: f64, ts: f64) -> Vec<f64> {
-    let d = Dynamics {
-        natural_frequency_hz: hz,
-        damping_ratio: zeta,
-        dc_gain: 1.0,
-    };
-    let u0 = u.first().copied().unwrap_or(0.0);
-    let shifted: Vec<f64> = u.iter().map(|v| v - u0).collect();
-    match d.operator(ts) {
-        Ok(mut op) => op.apply(&shifted),
-        Err(_) => vec![0.0; u.len()],
+#[derive(Clone)]
+struct Resonator {
+    filter: Option<BoxedOperator>,
+    u0: Option<f64>,
+}
+
+impl Resonator {
+    fn new(hz: f64, zeta: f64, ts: f64) -> Resonator {
+        let d = Dynamics {
+            natural_frequency_hz: hz,
+            damping_ratio: zeta,
+            dc_gain: 1.0,
+        };
+        Resonator {
+            filter: d.operator(ts).ok().map(|op| Box::new(op) as BoxedOperator),
+            u0: None,
+        }
+    }
+}
+
+impl Operator for Resonator {
+    fn reset(&mut self) {
+        self.u0 = None;
+        if let Some(f) = self.filter.as_mut() {
+            f.reset();
+        }
+    }
+    fn step(&mut self, x: f64) -> f64 {
+        let u0 = *self.u0.get_or_insert(x);
+        self.filter.as_mut().map_or(0.0, |f| f.step(x - u0))
     }
 }
 
@@ -247,7 +266,7 @@ pub static RESONATOR: FeatureKind = FeatureKind {
     params: &["hz", "zeta"],
     valid: |p| p[0].is_finite() && p[0] > 0.0 && p[1].is_finite() && p[1] > 0.0,
     label: |n, p| format!("resonator({n}, {:.2} Hz, zeta={})", p[0], p[1]),
-    compute: |u, p, ts| resonator(u, p[0], p[1], ts),
+    operator: |p, ts| Box::new(Resonator::new(p[0], p[1], ts)),
 };
 
 /// The second-order filter (one sample of delay) on a signal; NaN when `d` cannot be

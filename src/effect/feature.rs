@@ -7,6 +7,8 @@
 //! first-order state to creep, a resonator to dynamics, a rate to viscous damping. In a model
 //! file a feature reads `{"play": {"input": 0, "threshold": 0.25}}`.
 
+use super::spec::BoxedOperator;
+
 /// A kind of feature signal: its name, its parameters and how it is computed.
 #[derive(Debug)]
 pub struct FeatureKind {
@@ -18,8 +20,10 @@ pub struct FeatureKind {
     pub valid: fn(&[f64]) -> bool,
     /// A short label from the input's name and the parameters.
     pub label: fn(&str, &[f64]) -> String,
-    /// The signal from the input, the parameters and the sampling period (s).
-    pub compute: fn(&[f64], &[f64], f64) -> Vec<f64>,
+    /// The signal as an operator at rest, from the parameters and the sampling period (s):
+    /// stepped one sample at a time (a NARX model run forward by a compensator) or over a
+    /// whole signal ([`FeatureSpec::compute`]), with the same bits.
+    pub operator: fn(&[f64], f64) -> BoxedOperator,
 }
 
 /// One feature: a kind, the input it is computed from (index into the record's inputs) and its
@@ -102,12 +106,16 @@ impl FeatureSpec {
     /// the definition does not fit the record ([`FeatureSpec::check`] says why).
     pub fn compute(&self, inputs: &[&[f64]], ts: f64) -> Vec<f64> {
         let n = inputs.first().map_or(0, |u| u.len());
-        match inputs.get(self.input) {
-            Some(u) if self.params.len() == self.kind.params.len() => {
-                (self.kind.compute)(u, &self.params, ts)
-            }
+        match (inputs.get(self.input), self.operator(ts)) {
+            (Some(u), Some(mut op)) => op.apply(u),
             _ => vec![f64::NAN; n],
         }
+    }
+
+    /// The signal as an operator at rest (`None` when the parameters do not fit the kind).
+    pub fn operator(&self, ts: f64) -> Option<BoxedOperator> {
+        (self.params.len() == self.kind.params.len())
+            .then(|| (self.kind.operator)(&self.params, ts))
     }
 }
 

@@ -153,7 +153,7 @@ pub static PLAY: FeatureKind = FeatureKind {
     params: &["threshold"],
     valid: |p| p[0].is_finite() && p[0] >= 0.0,
     label: |n, p| format!("play({n}, r={:.4})", p[0]),
-    compute: |u, p, _| play_bank(u, &[p[0]]).pop().unwrap_or_default(),
+    operator: |p, _| Box::new(super::play::Play::new(p[0], 0.0)),
 };
 
 /// Thresholds spread over the input range: r_k = k R / (n + 1), k = 1..n, R = max |u|.

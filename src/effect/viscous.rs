@@ -84,11 +84,31 @@ impl Operator for ViscousOp {
 
 /// The rate of a signal, (u(k) - u(k-1)) / Ts with 0 at the first sample.
 pub fn rate(u: &[f64], ts: f64) -> Vec<f64> {
-    let mut out = Vec::with_capacity(u.len());
-    for k in 0..u.len() {
-        out.push(if k == 0 { 0.0 } else { (u[k] - u[k - 1]) / ts });
+    Rate::new(ts).apply(u)
+}
+
+/// [`rate`] one sample at a time.
+#[derive(Debug, Clone)]
+pub struct Rate {
+    ts: f64,
+    last: Option<f64>,
+}
+
+impl Rate {
+    pub fn new(ts: f64) -> Rate {
+        Rate { ts, last: None }
     }
-    out
+}
+
+impl Operator for Rate {
+    fn reset(&mut self) {
+        self.last = None;
+    }
+    fn step(&mut self, x: f64) -> f64 {
+        let r = self.last.map_or(0.0, |p| (x - p) / self.ts);
+        self.last = Some(x);
+        r
+    }
 }
 
 /// First-order low-pass (exact ZOH, unit gain, state 0 at the start) of a signal.
@@ -145,7 +165,7 @@ pub static RATE: FeatureKind = FeatureKind {
     params: &[],
     valid: |_| true,
     label: |n, _| format!("rate({n})"),
-    compute: |u, _, ts| rate(u, ts),
+    operator: |_, ts| Box::new(Rate::new(ts)),
 };
 
 /// The grey-box term: c du/dt, c by least squares.

@@ -128,6 +128,7 @@ impl NarxConfig {
         let m = cfg.choose_decimation(train, m)?;
         let mut m = cfg.choose_base(train, m, probe.as_ref(), short_base)?;
         m.input_region = Some(InputRegion::of(std::slice::from_ref(train)));
+        m.sampling_period_s = Some(train.ts);
         m.train_seconds = t0.elapsed().as_secs_f64();
         Ok(m)
     }
@@ -317,6 +318,7 @@ impl NarxConfig {
         let mut m = self.fit_fixed(records)?;
         m.config.robust.try_features.clear();
         m.input_region = Some(InputRegion::of(records));
+        m.sampling_period_s = records.first().map(|r| r.ts);
         Ok(m)
     }
 
@@ -417,6 +419,7 @@ impl NarxConfig {
             linear_probe: None,
             input_region: None,
             base: None,
+            sampling_period_s: None,
         })
     }
 

@@ -12,6 +12,7 @@
 //!   simulation-error training over windows, free run with divergence detection;
 //! - [`config`]: the unfitted [`NarxConfig`] (protocol `default` or `study`);
 //! - [`model`]: the fitted [`FittedNarx`], prediction, scores and the versioned model file;
+//! - [`state`]: a fitted model stepped one sample at a time (for the compensator);
 //! - [`base`]: the grey-box base candidate (a grey-box model alone or under a network on its
 //!   residual, chosen per output on the training record's validation part);
 //! - [`synthetic`]: records of known plants from the effect library, for tests and benches.
@@ -32,6 +33,7 @@ pub mod mlp;
 pub mod model;
 pub mod region;
 pub mod regressors;
+pub mod state;
 pub mod synthetic;
 pub mod train;
 
@@ -39,3 +41,4 @@ pub use config::{features_of, Interaction, NarxConfig, OptimizerKind, Protocol, 
 pub use error::NarxError;
 pub use model::{FittedNarx, Mode, OutputPrediction};
 pub use regressors::Lags;
+pub use state::NarxState;

@@ -95,6 +95,15 @@ impl OutputModel {
     pub fn members(&self) -> impl Iterator<Item = &Mlp> {
         std::iter::once(&self.network).chain(self.ensemble.iter())
     }
+
+    /// The standardised range a free run must stay in: the training range widened by
+    /// [`DIVERGENCE_RANGES`] ranges on each side (outside it, the run diverged).
+    pub fn free_run_bounds(&self) -> (f64, f64) {
+        let r = (self.train_max - self.train_min).max(f64::MIN_POSITIVE);
+        let lo = (self.train_min - DIVERGENCE_RANGES * r - self.scaling.mean) / self.scaling.std;
+        let hi = (self.train_max + DIVERGENCE_RANGES * r - self.scaling.mean) / self.scaling.std;
+        (lo, hi)
+    }
 }
 
 /// A fitted NARX model: one MISO network per output.
@@ -123,6 +132,10 @@ pub struct FittedNarx {
     /// tried).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base: Option<super::base::GreyBoxBase>,
+    /// The training records' sampling period, s (`None`: a model file written before it was
+    /// kept).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sampling_period_s: Option<f64>,
 }
 
 /// The linear probe of one output on a short record: the free-run MSE on the held-out tail of
@@ -455,9 +468,7 @@ impl FittedNarx {
                     (z, None)
                 }
                 Mode::FreeRun => {
-                    let r = (o.train_max - o.train_min).max(f64::MIN_POSITIVE);
-                    let lo = (o.train_min - DIVERGENCE_RANGES * r - o.scaling.mean) / o.scaling.std;
-                    let hi = (o.train_max + DIVERGENCE_RANGES * r - o.scaling.mean) / o.scaling.std;
+                    let (lo, hi) = o.free_run_bounds();
                     let members: Vec<&Mlp> = o.members().collect();
                     let extra: Vec<&Mlp> = if o.band.is_some() {
                         o.band_members.iter().collect()

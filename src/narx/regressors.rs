@@ -76,7 +76,13 @@ impl Standardiser {
 
     /// Standardise a signal.
     pub fn apply(&self, x: &[f64]) -> Vec<f64> {
-        x.iter().map(|v| (v - self.mean) / self.std).collect()
+        x.iter().map(|&v| self.apply_one(v)).collect()
+    }
+
+    /// Standardise one value.
+    #[inline]
+    pub fn apply_one(&self, v: f64) -> f64 {
+        (v - self.mean) / self.std
     }
 
     /// Back to physical units.

@@ -425,8 +425,7 @@ fn free_run_one_hidden_avx2(
 
 /// The body of [`free_run_fast`]: per sample, every neuron's input (exogenous regressors, then
 /// output lags, each added to all neurons at once), tanh over all neurons in whole vectors, and
-/// the output sum in neuron order. (Long on purpose: the hot loop of every free run, kept in
-/// one piece so that the compiler keeps its buffers in registers.)
+/// the output sum in neuron order ([`OneHidden::output`]).
 #[inline(always)]
 fn free_run_one_hidden(
     mlp: &Mlp,
@@ -437,61 +436,116 @@ fn free_run_one_hidden(
 ) -> (Vec<f64>, Option<usize>) {
     let n = s.len();
     let start = reg.lags.start().min(n);
-    let (p, h) = (mlp.sizes[0], mlp.sizes[1]);
-    let ny = reg.lags.output;
-    let w1 = &mlp.params[..p * h];
-    let b1 = &mlp.params[p * h..p * h + h];
-    let w2 = &mlp.params[p * h + h..p * h + 2 * h];
-    let b2 = mlp.params[p * h + 2 * h];
-    let ws = if mlp.bypass {
-        &mlp.params[mlp.bypass_offset()..]
-    } else {
-        &[][..]
-    };
-    // W1 packed by groups of 4 neurons (padded with zeros): group c holds, for each regressor in
-    // the order of the sums (exogenous first, then output lags), its 4 weights.
-    const V: usize = 4;
-    let hp = h.div_ceil(V) * V;
-    let order: Vec<usize> = (ny..p).chain(0..ny).collect();
-    let mut w1c = vec![0.0; hp * p];
-    for o in 0..h {
-        let (c, l) = (o / V, o % V);
-        for (jj, &j) in order.iter().enumerate() {
-            w1c[(c * p + jj) * V + l] = w1[o * p + j];
-        }
-    }
-    let mut b1p = vec![0.0; hp];
-    b1p[..h].copy_from_slice(b1);
-    let wsy: Vec<f64> = if mlp.bypass {
-        ws[..ny].to_vec()
-    } else {
-        vec![0.0; ny]
-    };
+    let net = OneHidden::new(mlp, reg.lags.output);
     let sc = reg.scale();
     let mut y = Vec::with_capacity(n);
     y.extend_from_slice(&s.y[..start]);
-    let mut x = vec![0.0; p];
-    let mut xo = vec![0.0; p];
-    let mut act = vec![0.0; hp];
+    let mut w = net.workspace();
     for k in start..n {
-        reg.fill_inputs(&s.u, k, &mut x);
-        reg.fill_outputs(&y, k, &mut x);
-        xo[..p - ny].copy_from_slice(&x[ny..]);
-        xo[p - ny..].copy_from_slice(&x[..ny]);
-        let mut out = b2;
-        if mlp.bypass {
-            for (wi, xi) in ws[ny..].iter().zip(&x[ny..]) {
-                out += wi * xi;
+        reg.fill_inputs(&s.u, k, &mut w.x);
+        reg.fill_outputs(&y, k, &mut w.x);
+        let v = reg.base(&y, k) + sc * net.output(&mut w);
+        if !(v >= lo && v <= hi) {
+            return (y, Some(k));
+        }
+        y.push(v);
+    }
+    (y, None)
+}
+
+/// A one-hidden-layer network packed for one regressor at a time: W1 by groups of 4 neurons
+/// (padded with zeros), group c holding, for each regressor in the order of the sums
+/// (exogenous first, then output lags), its 4 weights. The free run of prediction and the
+/// compensator's stepped model ([`super::state`]) share it: the same operations in the same
+/// order, so the same bits.
+#[derive(Debug, Clone)]
+pub(super) struct OneHidden {
+    p: usize,
+    ny: usize,
+    w1c: Vec<f64>,
+    b1p: Vec<f64>,
+    w2: Vec<f64>,
+    b2: f64,
+    /// Bypass weights of the exogenous regressors and of the output lags (empty: no bypass).
+    wsu: Vec<f64>,
+    wsy: Vec<f64>,
+}
+
+/// The buffers of [`OneHidden::output`]: `x` is the regressor (output lags first, as
+/// [`Regressor`] writes it).
+#[derive(Debug, Clone)]
+pub(super) struct OneHiddenWork {
+    pub x: Vec<f64>,
+    xo: Vec<f64>,
+    act: Vec<f64>,
+}
+
+const V: usize = 4;
+
+impl OneHidden {
+    /// `mlp` must have one hidden layer (`mlp.sizes.len() == 3`); `ny` output lags.
+    pub fn new(mlp: &Mlp, ny: usize) -> OneHidden {
+        let (p, h) = (mlp.sizes[0], mlp.sizes[1]);
+        let w1 = &mlp.params[..p * h];
+        let b1 = &mlp.params[p * h..p * h + h];
+        let hp = h.div_ceil(V) * V;
+        let order: Vec<usize> = (ny..p).chain(0..ny).collect();
+        let mut w1c = vec![0.0; hp * p];
+        for o in 0..h {
+            let (c, l) = (o / V, o % V);
+            for (jj, &j) in order.iter().enumerate() {
+                w1c[(c * p + jj) * V + l] = w1[o * p + j];
             }
         }
+        let mut b1p = vec![0.0; hp];
+        b1p[..h].copy_from_slice(b1);
+        let (wsu, wsy) = if mlp.bypass {
+            let ws = &mlp.params[mlp.bypass_offset()..];
+            (ws[ny..].to_vec(), ws[..ny].to_vec())
+        } else {
+            (Vec::new(), vec![0.0; ny])
+        };
+        OneHidden {
+            p,
+            ny,
+            w1c,
+            b1p,
+            w2: mlp.params[p * h + h..p * h + 2 * h].to_vec(),
+            b2: mlp.params[p * h + 2 * h],
+            wsu,
+            wsy,
+        }
+    }
+
+    pub fn workspace(&self) -> OneHiddenWork {
+        OneHiddenWork {
+            x: vec![0.0; self.p],
+            xo: vec![0.0; self.p],
+            act: vec![0.0; self.b1p.len()],
+        }
+    }
+
+    /// The network's output for the regressor in `w.x`. (Long on purpose: the hot loop of
+    /// every free run, kept in one piece so that the compiler keeps its buffers in registers.)
+    #[inline(always)]
+    pub fn output(&self, w: &mut OneHiddenWork) -> f64 {
+        let (p, ny) = (self.p, self.ny);
+        let x = &w.x;
+        w.xo[..p - ny].copy_from_slice(&x[ny..]);
+        w.xo[p - ny..].copy_from_slice(&x[..ny]);
+        let mut out = self.b2;
+        for (wi, xi) in self.wsu.iter().zip(&x[ny..]) {
+            out += wi * xi;
+        }
         // four neurons at a time: bias, exogenous regressors, output lags, tanh
-        for ((ac, bc), wc) in act
+        for ((ac, bc), wc) in w
+            .act
             .chunks_exact_mut(V)
-            .zip(b1p.chunks_exact(V))
-            .zip(w1c.chunks_exact(p * V))
+            .zip(self.b1p.chunks_exact(V))
+            .zip(self.w1c.chunks_exact(p * V))
         {
             let mut a = [bc[0], bc[1], bc[2], bc[3]];
-            for (wj, &xj) in wc.chunks_exact(V).zip(&xo) {
+            for (wj, &xj) in wc.chunks_exact(V).zip(&w.xo) {
                 for l in 0..V {
                     a[l] += wj[l] * xj;
                 }
@@ -500,20 +554,14 @@ fn free_run_one_hidden(
                 ac[l] = super::mlp::tanh(a[l]);
             }
         }
-        let xy = &x[..ny];
-        for (wo, a) in w2.iter().zip(&act) {
+        for (wo, a) in self.w2.iter().zip(&w.act) {
             out += wo * a;
         }
-        for (wi, xi) in wsy.iter().zip(xy) {
+        for (wi, xi) in self.wsy.iter().zip(&x[..ny]) {
             out += wi * xi;
         }
-        let v = reg.base(&y, k) + sc * out;
-        if !(v >= lo && v <= hi) {
-            return (y, Some(k));
-        }
-        y.push(v);
+        out
     }
-    (y, None)
 }
 
 /// Workspace of the simulation-error gradient over one window.
