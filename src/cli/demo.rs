@@ -240,7 +240,7 @@ fn compensation(out: &Path, md: &mut String) -> anyhow::Result<()> {
         serde_json::from_str(&std::fs::read_to_string(dir.join("track.json"))?)?;
     let _ = writeln!(
         md,
-        "The model `improve` ended with (`{}`) is inverted sample by sample (`hystbench compensate`), and the plant that made the record is driven along a reference it never saw (`compensation/reference.csv`: 2 s of 1.5 Hz and 11 Hz sines and a 5 Hz triangle), with the compensating input and, for comparison, with the reference divided by the model's static gain (`hystbench track`):\n",
+        "The model `improve` ended with (`{}`) is inverted sample by sample (`hystbench compensate`), and the plant that made the record is driven along a reference it never saw (`compensation/reference.csv`: 2 s of 1.5 Hz and 11 Hz sines and a 5 Hz triangle), with the compensating input and, for comparison, with the reference divided by the plant's static gain, as a user calibrates it (`hystbench track`):\n",
         model.file_name().map_or(String::new(), |f| f.to_string_lossy().into_owned())
     );
     *md += "| output | uncompensated RMS | compensated RMS | % of the range | smaller by |\n|---|---|---|---|---|\n";
