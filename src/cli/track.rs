@@ -4,9 +4,11 @@ use crate::cli::compensate::{clipped_lines, parse_limits, read_reference};
 use hystbench::compensate::{
     compensate_stepped, static_gain, tracking, CompensateOptions, Named, OutputTracking,
 };
+use hystbench::data::OutputGuard;
 use hystbench::data::{IoRecord, Signal};
 use hystbench::model::load_model;
-use hystbench::plot::{loop_figure, time_figure, LoopOptions, PlotRecord};
+use hystbench::plot::time::TimeFigure;
+use hystbench::plot::{render, Format, LoopFigure, LoopOptions, PlotRecord};
 use std::path::PathBuf;
 
 /// Run a plant on a reference with and without a model's compensating input, and compare
@@ -184,31 +186,38 @@ pub fn execute(a: &Args) -> anyhow::Result<TrackResult> {
         cross: false,
         ..Default::default()
     };
-    loop_figure(
-        &[unc.clone(), com.clone()],
-        &loops,
-        &a.out.join("loop.png"),
+    // every file staged, then renamed into place together: a failure leaves nothing half written
+    let mut guard = OutputGuard::new(a.force);
+    let figure = render(
+        &LoopFigure::new(&[unc.clone(), com.clone()], &loops)?,
+        Format::Png,
         None,
-        a.force,
     )?;
-    let timed = |rec: &PlotRecord, y: &[Vec<f64>], name: &str, title: &str| -> anyhow::Result<()> {
-        let mut rec = rec.clone();
-        rec.io.outputs = r
-            .names
-            .iter()
-            .zip(&r.signals)
-            .map(|(n, s)| Signal {
-                name: n.clone(),
-                values: s.clone(),
-            })
-            .collect();
-        rec = PlotRecord::from_io(rec.label.clone(), rec.io);
-        for (o, v) in y.iter().enumerate() {
-            rec = rec.with_prediction(o, v.clone())?;
-        }
-        time_figure(&rec, Some(title.into()), &a.out.join(name), None, a.force)?;
-        Ok(())
-    };
+    guard.stage(&a.out.join("loop.png"), &figure)?;
+    let mut timed =
+        |rec: &PlotRecord, y: &[Vec<f64>], name: &str, title: &str| -> anyhow::Result<()> {
+            let mut rec = rec.clone();
+            rec.io.outputs = r
+                .names
+                .iter()
+                .zip(&r.signals)
+                .map(|(n, s)| Signal {
+                    name: n.clone(),
+                    values: s.clone(),
+                })
+                .collect();
+            rec = PlotRecord::from_io(rec.label.clone(), rec.io);
+            for (o, v) in y.iter().enumerate() {
+                rec = rec.with_prediction(o, v.clone())?;
+            }
+            let figure = render(
+                &TimeFigure::new(&rec, Some(title.into()))?,
+                Format::Png,
+                None,
+            )?;
+            guard.stage(&a.out.join(name), &figure)?;
+            Ok(())
+        };
     timed(
         &com,
         &y_c,
@@ -229,11 +238,11 @@ pub fn execute(a: &Args) -> anyhow::Result<TrackResult> {
         "unreachable": c.unreachable,
         "outputs": outputs,
     });
-    hystbench::data::write_atomic(
+    guard.stage(
         &a.out.join("track.json"),
         serde_json::to_string_pretty(&json)?.as_bytes(),
-        a.force,
     )?;
+    guard.commit()?;
     Ok(TrackResult {
         json,
         outputs,
