@@ -1,6 +1,6 @@
 //! `hystbench compare`: a model against a record: scores and where it fails.
 
-use hystbench::data::{read_csv, IoRecord};
+use hystbench::data::IoRecord;
 use hystbench::diagnose::compare::{compare, OutputComparison};
 use hystbench::diagnose::unit_of;
 use hystbench::model::{load_model, Model};
@@ -32,7 +32,7 @@ pub fn predict_record(
     data: &std::path::Path,
     model: &dyn Model,
 ) -> anyhow::Result<(IoRecord, Vec<Vec<f64>>)> {
-    let io = model.select(&read_csv(data)?)?;
+    let io = model.select(&crate::cli::read_data(data)?)?;
     // said before predicting: a free run that extrapolates may diverge
     crate::cli::warn_outside(data, &model.outside(&io));
     let pred = predict_io(model, &io)?;

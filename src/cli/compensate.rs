@@ -1,7 +1,7 @@
 //! `hystbench compensate`: the input that makes a model follow a reference.
 
 use hystbench::compensate::{compensate_stepped, CompensateOptions, Compensation, Named};
-use hystbench::data::{read_csv, write_csv_atomic};
+use hystbench::data::write_csv_atomic;
 use hystbench::model::{load_model, Model};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -53,7 +53,7 @@ pub fn read_reference(
     model: &dyn Model,
     columns: Option<&[String]>,
 ) -> anyhow::Result<Reference> {
-    let rec = read_csv(path)?;
+    let rec = crate::cli::read_data(path)?;
     let outputs = model.output_names();
     let names: Vec<String> = match columns {
         Some(c) => c.to_vec(),

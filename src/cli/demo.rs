@@ -122,7 +122,7 @@ fn identify_records(records: &Path, md: &mut String) -> anyhow::Result<()> {
         ("prandtl_ishlinskii_asymmetric", 0.999),
         ("piezo_2dof", 0.99),
     ] {
-        let rec = hystbench::data::read_csv(&records.join(format!("{name}.csv")))?;
+        let rec = crate::cli::read_data(&records.join(format!("{name}.csv")))?;
         let io = hystbench::data::IoRecord::from_record(&rec, None, None, true)?;
         let (train, test) = io.split_halves();
         let t = std::time::Instant::now();
@@ -158,7 +158,7 @@ fn hidden_effect(out: &Path, records: &Path, md: &mut String) -> anyhow::Result<
     eprintln!("3. a record with a hidden effect: compare, diagnose, add it, watch the error fall");
     *md += "\n## 3. A hidden effect: diagnose, add, watch the error fall\n\n";
     let hidden = records.join("hidden_creep_piezo.csv");
-    let rec = hystbench::data::read_csv(&hidden)?;
+    let rec = crate::cli::read_data(&hidden)?;
     let io = hystbench::data::IoRecord::from_record(&rec, None, None, true)?;
     let start =
         hystbench::graybox::GreyBoxConfig::from_effect_list("hysteresis,dynamics")?.fit(&io)?;

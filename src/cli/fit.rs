@@ -2,7 +2,7 @@
 //! record and write the model file.
 
 use anyhow::Context;
-use hystbench::data::{check_writable, read_csv, IoRecord};
+use hystbench::data::{check_writable, IoRecord};
 use hystbench::graybox::{FittedGreyBox, GreyBoxConfig};
 use serde_json::{json, Map, Value};
 use std::path::PathBuf;
@@ -82,7 +82,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     check_writable(&a.out, a.force)?;
-    let rec = read_csv(&a.data)?;
+    let rec = crate::cli::read_data(&a.data)?;
     let io = IoRecord::from_record(&rec, Some(&a.inputs), Some(&a.outputs), true)?;
     let model = cfg
         .fit(&io)

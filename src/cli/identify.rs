@@ -3,7 +3,7 @@
 
 use anyhow::Context;
 use clap::Args;
-use hystbench::data::{check_writable, read_csv, write_atomic, IoRecord};
+use hystbench::data::{check_writable, write_atomic, IoRecord};
 use hystbench::effect::EffectName;
 use hystbench::effect::FeatureSpec;
 use hystbench::narx::model::OutputEvaluation;
@@ -191,13 +191,23 @@ pub fn load_records(
 ) -> anyhow::Result<(IoRecord, IoRecord)> {
     let sel = |v: &[String]| (!v.is_empty()).then(|| v.to_vec());
     let (i, o) = (sel(inputs), sel(outputs));
-    let rec = IoRecord::from_record(&read_csv(data)?, i.as_deref(), o.as_deref(), true)?;
+    let rec = IoRecord::from_record(
+        &crate::cli::read_data(data)?,
+        i.as_deref(),
+        o.as_deref(),
+        true,
+    )?;
     match test {
         None => Ok(rec.split_halves()),
         Some(t) => {
             let names_i = rec.input_names();
             let names_o = rec.output_names();
-            let te = IoRecord::from_record(&read_csv(t)?, Some(&names_i), Some(&names_o), true)?;
+            let te = IoRecord::from_record(
+                &crate::cli::read_data(t)?,
+                Some(&names_i),
+                Some(&names_o),
+                true,
+            )?;
             Ok((rec, te))
         }
     }

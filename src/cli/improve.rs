@@ -3,7 +3,7 @@
 //! print and plot the ladder of errors.
 
 use crate::cli::compare::write_figures;
-use hystbench::data::{read_csv, IoRecord};
+use hystbench::data::IoRecord;
 use hystbench::diagnose::unit_of;
 use hystbench::improve::{
     effect_list, improve, start_config, ImproveOptions, Ladder, Progress, Rung,
@@ -89,7 +89,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     opts.check()?;
     crate::cli::demo::prepare_report_folder(&a.out, a.force)?;
     let model: Box<dyn Model> = load_model(&a.model)?;
-    let rec = read_csv(&a.data)?;
+    let rec = crate::cli::read_data(&a.data)?;
     let io_all = model.select(&rec)?;
     let Ladder {
         mut rungs,

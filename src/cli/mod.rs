@@ -94,6 +94,19 @@ pub fn warn_outside(record: &std::path::Path, outside: &[hystbench::narx::region
 }
 
 /// Print to standard output, ending with a newline; a closed pipe (`| head`) is not an error.
+/// Read a data file through the one reading path, and say on standard error what it accepted
+/// beyond a plain CSV (a `;` separator, decimal commas, comments, units).
+pub fn read_data(
+    path: &std::path::Path,
+) -> Result<hystbench::data::Record, hystbench::data::DataError> {
+    let rec = hystbench::data::read_csv(path)?;
+    let notes = rec.format.notes(&rec.names);
+    if !notes.is_empty() {
+        eprintln!("note: read {}: {}", path.display(), notes.join("; "));
+    }
+    Ok(rec)
+}
+
 pub fn print(text: &str) {
     use std::io::Write;
     let mut out = std::io::stdout().lock();

@@ -2,7 +2,7 @@
 
 use anyhow::bail;
 use clap::Args;
-use hystbench::data::{check_writable, read_csv, write_csv_atomic, IoRecord};
+use hystbench::data::{check_writable, write_csv_atomic, IoRecord};
 use hystbench::narx::{FittedNarx, Mode};
 use std::path::PathBuf;
 
@@ -31,7 +31,7 @@ pub struct PredictArgs {
 pub fn run(args: PredictArgs) -> anyhow::Result<()> {
     check_writable(&args.out, args.force)?;
     let model = FittedNarx::load(&args.model)?;
-    let raw = read_csv(&args.data)?;
+    let raw = crate::cli::read_data(&args.data)?;
     let inputs = &model.config.inputs;
     let outputs: Vec<String> = model
         .config

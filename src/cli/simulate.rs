@@ -2,7 +2,7 @@
 //! with a JSON sidecar.
 
 use anyhow::Context;
-use hystbench::data::{format_csv, read_csv, IoRecord, OutputGuard};
+use hystbench::data::{format_csv, IoRecord, OutputGuard};
 use hystbench::plant::Plant;
 use hystbench::scenario::Scenario;
 use hystbench::simulator::{simulate_recorded, simulate_scenario, Simulation};
@@ -77,7 +77,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             if !(a.noise.is_finite() && a.noise >= 0.0) {
                 anyhow::bail!("--noise {}: must be a finite number >= 0", a.noise);
             }
-            let rec = read_csv(input)?;
+            let rec = crate::cli::read_data(input)?;
             let cols: Vec<String> = if !a.input_columns.is_empty() {
                 a.input_columns.clone()
             } else if plant.inputs.iter().all(|n| rec.names.contains(n)) {

@@ -1,7 +1,7 @@
 //! `hystbench split`: cut a record at its time gaps and resample each part onto a uniform grid,
 //! one CSV per part, so that records with logger pauses or jittered time stamps can be used.
 
-use hystbench::data::{format_csv, read_csv, split_at_gaps, OutputGuard};
+use hystbench::data::{format_csv, split_at_gaps, OutputGuard};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -35,7 +35,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             a.gap
         );
     }
-    let rec = read_csv(&a.data)?;
+    let rec = crate::cli::read_data(&a.data)?;
     let split = split_at_gaps(&rec, a.gap, a.min_samples)?;
     if split.parts.is_empty() {
         anyhow::bail!(

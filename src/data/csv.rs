@@ -1,4 +1,5 @@
-//! CSV parsing with line numbers in every error.
+//! CSV parsing with line numbers in every error, tolerant of what labs write (comments, `;` or
+//! tab separators, decimal commas, a trailing separator, units in the header), and saying so.
 
 use super::DataError;
 use std::path::{Path, PathBuf};
@@ -12,6 +13,8 @@ pub struct Record {
     pub names: Vec<String>,
     /// Column data, one `Vec` per name.
     pub columns: Vec<Vec<f64>>,
+    /// How the file was written (separator, decimal commas, comments, units).
+    pub format: CsvFormat,
 }
 
 /// Read a CSV file with a header row and numeric cells.
@@ -23,44 +26,64 @@ pub fn read_csv(path: &Path) -> Result<Record, DataError> {
     parse_csv(path, &text)
 }
 
-/// Parse CSV text (see [`read_csv`]); `path` only labels the errors.
+/// Parse CSV text (see [`read_csv`]); `path` only labels the errors. Beyond a plain
+/// comma-separated table it reads what labs write, and says so in [`Record::format`]: comment
+/// lines starting with `#` (anywhere), a byte-order mark, a `;` or tab separator (from the
+/// header), decimal commas with them, a trailing separator on every line, and units in the
+/// header (`displacement [um]`, `u (V)`). Line numbers in errors are the file's.
 pub fn parse_csv(path: &Path, text: &str) -> Result<Record, DataError> {
     let p = || path.to_path_buf();
+    let comment = |l: &str| {
+        l.trim_start()
+            .trim_start_matches('\u{feff}')
+            .starts_with('#')
+    };
     let mut lines = text
         .lines()
         .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty());
-    let (_, header) = lines.next().ok_or(DataError::Empty { path: p() })?;
+        .filter(|(_, l)| !l.trim().is_empty() && !comment(l));
+    let (header_at, header) = lines.next().ok_or(DataError::Empty { path: p() })?;
     let header = header.trim_start_matches('\u{feff}');
-    let names: Vec<String> = header
-        .split(',')
-        .map(|s| s.trim().trim_matches('"').to_string())
-        .collect();
+    let sep = separator_of(header);
+    let mut raw: Vec<&str> = header.split(sep).collect();
+    let trailing_separator = raw.len() > 1 && raw.last().is_some_and(|n| n.trim().is_empty());
+    if trailing_separator {
+        raw.pop();
+    }
+    let (names, units): (Vec<String>, Vec<Option<String>>) =
+        raw.iter().map(|n| name_and_unit(n)).unzip();
     for (i, n) in names.iter().enumerate() {
         if n.is_empty() {
             return Err(DataError::EmptyHeaderName {
                 path: p(),
+                line: header_at + 1,
                 position: i + 1,
             });
         }
         if names[..i].contains(n) {
             return Err(DataError::DuplicateColumn {
                 path: p(),
+                line: header_at + 1,
                 name: n.clone(),
             });
         }
     }
+    let mut decimal_comma = false;
     let mut columns: Vec<Vec<f64>> =
         vec![Vec::with_capacity(text.len() / (8 * names.len()) + 1); names.len()];
     for (idx, line) in lines {
         let line_no = idx + 1;
         let mut found = 0;
-        for (j, cell) in line.split(',').enumerate() {
-            found += 1;
+        for (j, cell) in line.split(sep).enumerate() {
             if j >= names.len() {
+                // the trailing separator's empty cell is not a column
+                if !(trailing_separator && j == names.len() && cell.trim().is_empty()) {
+                    found += 1;
+                }
                 continue;
             }
-            let cell = cell.trim();
+            found += 1;
+            let cell = cell.trim().trim_matches('"').trim();
             if cell.is_empty() {
                 return Err(DataError::MissingCell {
                     path: p(),
@@ -68,7 +91,13 @@ pub fn parse_csv(path: &Path, text: &str) -> Result<Record, DataError> {
                     column: names[j].clone(),
                 });
             }
-            let v: f64 = cell.parse().map_err(|_| DataError::NotANumber {
+            let parsed = if sep != ',' && cell.contains(',') {
+                decimal_comma = true;
+                cell.replace(',', ".").parse::<f64>()
+            } else {
+                cell.parse::<f64>()
+            };
+            let v: f64 = parsed.map_err(|_| DataError::NotANumber {
                 path: p(),
                 line: line_no,
                 column: names[j].clone(),
@@ -100,7 +129,91 @@ pub fn parse_csv(path: &Path, text: &str) -> Result<Record, DataError> {
         path: path.to_path_buf(),
         names,
         columns,
+        format: CsvFormat {
+            separator: sep,
+            decimal_comma,
+            comment_lines: text.lines().filter(|l| comment(l)).count(),
+            trailing_separator,
+            units,
+        },
     })
+}
+
+/// How a CSV file was written, as read from it: what [`parse_csv`] accepted beyond a plain
+/// comma-separated table (said to the user, never guessed silently).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CsvFormat {
+    /// The separator, detected from the header: `,`, `;` or a tab.
+    pub separator: char,
+    /// Decimal commas (`1,5`): read when the separator is `;` or a tab.
+    pub decimal_comma: bool,
+    /// Comment lines (starting with `#`) skipped.
+    pub comment_lines: usize,
+    /// Every line ends with a separator (an empty last column, dropped).
+    pub trailing_separator: bool,
+    /// Per column, the unit written in its header (`displacement [um]`, `u (V)`), taken off the
+    /// name.
+    pub units: Vec<Option<String>>,
+}
+
+impl CsvFormat {
+    /// What differs from a plain CSV, in words (empty: a plain CSV).
+    pub fn notes(&self, names: &[String]) -> Vec<String> {
+        let mut out = Vec::new();
+        match self.separator {
+            ',' => {}
+            '\t' => out.push("tab-separated (from the header)".to_string()),
+            c => out.push(format!("`{c}`-separated (from the header)")),
+        }
+        if self.decimal_comma {
+            out.push("decimal commas".into());
+        }
+        if self.comment_lines > 0 {
+            out.push(format!("{} comment line(s) skipped", self.comment_lines));
+        }
+        if self.trailing_separator {
+            out.push("a trailing separator on every line".into());
+        }
+        let units: Vec<String> = names
+            .iter()
+            .zip(&self.units)
+            .filter_map(|(n, u)| u.as_ref().map(|u| format!("{n} [{u}]")))
+            .collect();
+        if !units.is_empty() {
+            out.push(format!("units taken off the names: {}", units.join(", ")));
+        }
+        out
+    }
+}
+
+/// A header name and its unit: `displacement [um]` and `u (V)` are `displacement` in um and
+/// `u` in V; a name without a bracketed ending has none.
+fn name_and_unit(raw: &str) -> (String, Option<String>) {
+    let s = raw.trim().trim_matches('"').trim();
+    for (open, close) in [('[', ']'), ('(', ')')] {
+        if let Some(body) = s.strip_suffix(close) {
+            if let Some(at) = body.rfind(open) {
+                let (name, unit) = (body[..at].trim(), body[at + 1..].trim());
+                if !name.is_empty() && !unit.is_empty() {
+                    return (name.to_string(), Some(unit.to_string()));
+                }
+            }
+        }
+    }
+    (s.to_string(), None)
+}
+
+/// The separator of a header line: a tab or `;` when the line has one and no comma, else `,`.
+fn separator_of(header: &str) -> char {
+    if header.contains(',') {
+        ','
+    } else if header.contains('\t') {
+        '\t'
+    } else if header.contains(';') {
+        ';'
+    } else {
+        ','
+    }
 }
 
 impl Record {

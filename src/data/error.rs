@@ -11,10 +11,18 @@ pub enum DataError {
     },
     #[error("{path}: the file is empty; a record needs a header row and at least one data row")]
     Empty { path: PathBuf },
-    #[error("{path}: line 1: the header has an empty column name at position {position}")]
-    EmptyHeaderName { path: PathBuf, position: usize },
-    #[error("{path}: line 1: the column name `{name}` appears twice")]
-    DuplicateColumn { path: PathBuf, name: String },
+    #[error("{path}: line {line}: the header has an empty column name at position {position}")]
+    EmptyHeaderName {
+        path: PathBuf,
+        line: usize,
+        position: usize,
+    },
+    #[error("{path}: line {line}: the column name `{name}` appears twice")]
+    DuplicateColumn {
+        path: PathBuf,
+        line: usize,
+        name: String,
+    },
     #[error("{path}: line {line}: {found} cells, but the header has {expected} columns")]
     RaggedRow {
         path: PathBuf,

@@ -15,7 +15,7 @@ mod json;
 mod split;
 mod write;
 
-pub use csv::{parse_csv, read_csv, Record, TimeSteps};
+pub use csv::{parse_csv, read_csv, CsvFormat, Record, TimeSteps};
 pub use error::DataError;
 pub use io_record::default_names;
 pub use io_record::{IoRecord, Signal};

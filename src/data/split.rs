@@ -115,6 +115,7 @@ mod tests {
             path: PathBuf::from("r.csv"),
             names: vec!["t_s".into(), "y".into()],
             columns: vec![t, y],
+            format: Default::default(),
         }
     }
 
