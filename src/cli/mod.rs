@@ -15,6 +15,7 @@ pub mod effects;
 pub mod fit;
 pub mod identify;
 pub mod improve;
+pub mod inspect;
 pub mod plot;
 pub mod predict;
 pub mod simulate;
@@ -64,6 +65,9 @@ pub enum Command {
     Effects(effects::Args),
     /// Cut a record at its time gaps and resample each part onto a uniform grid.
     Split(split::Args),
+    /// What a record holds before modelling: spikes, dropouts, clipping, quantisation, gaps,
+    /// drift, reversals.
+    Inspect(inspect::Args),
     /// Draw random plants from the effect library with a record of each (`zoo score DIR`:
     /// the default identifier against a linear baseline on them).
     Zoo(zoo::Args),
@@ -132,6 +136,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Plot(a) => plot::run(a),
         Command::Benchmark(a) => benchmark::run(a),
         Command::Split(a) => split::run(a),
+        Command::Inspect(a) => inspect::run(a),
         Command::Compensate(a) => compensate::run(a),
         Command::Track(a) => track::run(a),
         Command::Effects(a) => effects::run(a),

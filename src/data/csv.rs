@@ -69,10 +69,14 @@ pub fn parse_csv(path: &Path, text: &str) -> Result<Record, DataError> {
         }
     }
     let mut decimal_comma = false;
+    let mut first_line = 0;
     let mut columns: Vec<Vec<f64>> =
         vec![Vec::with_capacity(text.len() / (8 * names.len()) + 1); names.len()];
     for (idx, line) in lines {
         let line_no = idx + 1;
+        if first_line == 0 {
+            first_line = line_no;
+        }
         let mut found = 0;
         for (j, cell) in line.split(sep).enumerate() {
             if j >= names.len() {
@@ -135,6 +139,14 @@ pub fn parse_csv(path: &Path, text: &str) -> Result<Record, DataError> {
             comment_lines: text.lines().filter(|l| comment(l)).count(),
             trailing_separator,
             units,
+            first_line,
+            skipped: text
+                .lines()
+                .enumerate()
+                .skip(first_line)
+                .filter(|(_, l)| l.trim().is_empty() || comment(l))
+                .map(|(i, _)| i + 1)
+                .collect(),
         },
     })
 }
@@ -154,6 +166,29 @@ pub struct CsvFormat {
     /// Per column, the unit written in its header (`displacement [um]`, `u (V)`), taken off the
     /// name.
     pub units: Vec<Option<String>>,
+    /// The file's line of the first data row (1-based; 0: not read from a file).
+    pub first_line: usize,
+    /// Lines after the first data row that hold no row (blank or comment), in order.
+    pub skipped: Vec<usize>,
+}
+
+impl CsvFormat {
+    /// The file's line of data row `row` (0-based), for messages; `row + 2` (after a header
+    /// line) for a record not read from a file.
+    pub fn line_of(&self, row: usize) -> usize {
+        if self.first_line == 0 {
+            return row + 2;
+        }
+        let mut line = self.first_line + row;
+        for &s in &self.skipped {
+            if s <= line {
+                line += 1;
+            } else {
+                break;
+            }
+        }
+        line
+    }
 }
 
 impl CsvFormat {

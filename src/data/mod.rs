@@ -15,6 +15,7 @@ mod json;
 mod split;
 mod write;
 
+pub mod inspect;
 pub use csv::{parse_csv, read_csv, CsvFormat, Record, TimeSteps};
 pub use error::DataError;
 pub use io_record::default_names;

@@ -1,0 +1,91 @@
+//! `hystbench inspect`: what a record holds, before any model (spikes, dropouts, clipping,
+//! quantisation, gaps, drift, reversals), with the lines and what to do.
+
+use hystbench::data::inspect::inspect;
+use hystbench::data::IoRecord;
+use std::path::PathBuf;
+
+/// Report what a record holds before modelling: sampling, ranges, noise, reversals, and the
+/// spikes, dropouts, clipping, quantisation, gaps and drift it carries.
+#[derive(Debug, clap::Args)]
+#[command(
+    after_help = "Every finding names the column, the file's lines of the first samples and what to do. Example:\n  hystbench inspect --data lab.csv --inputs voltage_V --outputs displacement_um\nSee docs/user-guide.md (Records)."
+)]
+pub struct Args {
+    /// The record (CSV with a header row).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Input columns (default: `u` or `u1, u2...`).
+    #[arg(long, value_delimiter = ',')]
+    pub inputs: Option<Vec<String>>,
+    /// Output columns (default: `y` or `y1, y2...`).
+    #[arg(long, value_delimiter = ',')]
+    pub outputs: Option<Vec<String>>,
+    /// Print one JSON object (fields in docs/user-guide.md).
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let rec = crate::cli::read_data(&a.data)?;
+    let io = IoRecord::from_record(&rec, a.inputs.as_deref(), a.outputs.as_deref(), false)?;
+    let r = inspect(&rec, &io.input_names(), &io.output_names());
+    if a.json {
+        crate::cli::print(&serde_json::to_string(&r)?);
+        return Ok(());
+    }
+    let mut out = format!(
+        "{}: {} samples{}",
+        a.data.display(),
+        r.samples,
+        r.sampling_period
+            .map(|p| format!(
+                " at {p:.4e} s (jitter {:.2} %)",
+                100.0 * r.jitter.unwrap_or(0.0)
+            ))
+            .unwrap_or_default()
+    );
+    for c in &r.columns {
+        out += &format!(
+            "\n  {:<16} {:<6} {:>12.5e} .. {:<12.5e} noise {:.3e}",
+            c.name, c.role, c.min, c.max, c.noise
+        );
+        if let Some(n) = c.reversals {
+            out += &format!(
+                ", {n} reversals (median travel {}), largest rate {:.4e}/s",
+                c.median_travel.map_or("-".into(), |t| format!("{t:.4e}")),
+                c.max_rate.unwrap_or(0.0)
+            );
+        }
+    }
+    if r.findings.is_empty() {
+        out += "\nnothing to report: no spike, dropout, clipping, quantisation, gap, drift; the inputs reverse";
+    }
+    for f in &r.findings {
+        out += &format!(
+            "\nwarning: {}{}: {}{}; {}",
+            f.kind,
+            f.column
+                .as_ref()
+                .map(|c| format!(" in `{c}`"))
+                .unwrap_or_default(),
+            f.message,
+            if f.lines.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " (line{} {})",
+                    if f.lines.len() > 1 { "s" } else { "" },
+                    f.lines
+                        .iter()
+                        .map(usize::to_string)
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            },
+            f.advice
+        );
+    }
+    crate::cli::print(&out);
+    Ok(())
+}
