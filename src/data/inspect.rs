@@ -195,7 +195,7 @@ pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspectio
                     gross,
                     out.iter().map(|&k| x_raw[k]).fold(0.0f64, |m, v| if v.abs() > m.abs() { v } else { m })
                 ),
-                advice: "remove or repair these lines (a glitch of the logger), or leave them out with `--exclude`".into(),
+                advice: "remove or repair these lines (a glitch of the logger) before modelling: a model fitted through them learns the glitch".into(),
             });
         }
         // clipping: an output piled up at an extreme (the saturation effect's reading) while
