@@ -5,10 +5,9 @@
 
 use hystbench::compensate::{compensate, CompensateOptions};
 use hystbench::narx::base::BaseUse;
+use hystbench::narx::synthetic::{broadband_1dof, Plant1};
 use hystbench::narx::NarxConfig;
 use hystbench::plant::PlantSpec;
-use hystbench::scenario::ScenarioSpec;
-use hystbench::simulator::simulate_scenario;
 use std::path::Path;
 use std::time::Instant;
 
@@ -48,19 +47,12 @@ fn main() {
         println!("| {name} | {n} | {best:.3} | {:.0} |", n as f64 / best);
     }
     // NARX models identified on a noisy record that covers the references' band
-    let scenario = r#"{"name": "rich", "sampling_period_s": 0.0001, "samples": 40000,
-        "noise_std": 0.01, "seed": 3, "inputs": [{"sum": [
-            {"sine": {"amplitude": 22.0, "frequency_hz": 0.9}},
-            {"multisine": {"rms": 5.0, "f_min_hz": 0.5, "f_max_hz": 60.0}}]}]}"#;
-    let sc = ScenarioSpec::parse(Path::new("rich.json"), scenario)
-        .unwrap()
-        .check(Path::new("rich.json"))
-        .unwrap();
     let r1 = r(0.0);
-    for name in ["prandtl_ishlinskii_piezo.json", "bouc_wen_piezo.json"] {
-        let path = root.join("plants").join(name);
-        let plant = PlantSpec::read(&path).unwrap().check(&path).unwrap();
-        let rec = simulate_scenario(&plant, &sc, None).unwrap().record;
+    for (kind, name) in [
+        (Plant1::PrandtlIshlinskii, "prandtl_ishlinskii_piezo.json"),
+        (Plant1::BoucWen, "bouc_wen_piezo.json"),
+    ] {
+        let rec = broadband_1dof(kind, 3);
         for greybox in [true, false] {
             let mut cfg = NarxConfig::new(rec.input_names(), rec.output_names());
             cfg.robust.try_greybox = greybox;

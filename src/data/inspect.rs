@@ -12,6 +12,7 @@
 
 use super::{Record, TimeSteps};
 use crate::effect::saturation;
+use crate::metrics::quantile;
 use serde::Serialize;
 
 /// One thing found, with where and what to do.
@@ -63,7 +64,8 @@ pub struct Inspection {
 }
 
 /// A sample farther than this many robust deviations from its neighbours' median, and than
-/// [`OUTLIER_RANGE`] of the column's central range, is an outlier.
+/// [`OUTLIER_RANGE`] of the column's central range, while the samples around it agree with
+/// each other, is an outlier.
 pub const OUTLIER_SIGMAS: f64 = 12.0;
 /// See [`OUTLIER_SIGMAS`].
 pub const OUTLIER_RANGE: f64 = 0.2;
@@ -74,10 +76,6 @@ pub const GROSS_RANGES: f64 = 10.0;
 pub const DROPOUT_RUN: usize = 20;
 /// A drift above this share of the output's range over the record is reported.
 pub const DRIFT_SHARE: f64 = 0.02;
-
-fn quantile(sorted: &[f64], p: f64) -> f64 {
-    crate::metrics::quantile(sorted, p)
-}
 
 /// Lines of the first few of `rows`.
 fn lines(rec: &Record, rows: &[usize]) -> Vec<usize> {
@@ -169,9 +167,20 @@ pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspectio
         let mut ad: Vec<f64> = dev.iter().map(|d| d.abs()).collect();
         ad.sort_by(f64::total_cmp);
         let sigma = 1.4826 * quantile(&ad, 0.5);
+        // ... and isolated: the samples around it (a glitch of one or two samples) agree with
+        // each other (a fast random-step excitation moves on instead)
+        let isolated = |k: usize| {
+            let agree = (x[k - 1] - x[k + 1])
+                .abs()
+                .min((x[k - 2] - x[k + 1]).abs())
+                .min((x[k - 1] - x[k + 2]).abs());
+            agree < 0.25 * dev[k].abs()
+        };
         let out: Vec<usize> = (2..n.saturating_sub(2))
             .filter(|&k| {
-                dev[k].abs() > OUTLIER_SIGMAS * sigma && dev[k].abs() > OUTLIER_RANGE * central
+                dev[k].abs() > OUTLIER_SIGMAS * sigma
+                    && dev[k].abs() > OUTLIER_RANGE * central
+                    && isolated(k)
             })
             .collect();
         for &k in &out {
@@ -384,9 +393,8 @@ pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspectio
             // a drift runs through the record: the trend of each half (over the whole span)
             // agrees with the whole's (a step between a rest and the excitation does not)
             let h = n / 2;
-            let halves: Vec<&Vec<f64>> = ins.to_vec();
-            let first: Vec<Vec<f64>> = halves.iter().map(|u| u[..h].to_vec()).collect();
-            let second: Vec<Vec<f64>> = halves.iter().map(|u| u[h..].to_vec()).collect();
+            let first: Vec<Vec<f64>> = ins.iter().map(|u| u[..h].to_vec()).collect();
+            let second: Vec<Vec<f64>> = ins.iter().map(|u| u[h..].to_vec()).collect();
             let part = |ys: &[f64], us: &[Vec<f64>], ts: &[f64]| {
                 let r: Vec<&Vec<f64>> = us.iter().collect();
                 drift(ys, &r, ts).map(|d| 2.0 * d.0)
@@ -428,29 +436,21 @@ pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspectio
     }
 }
 
-/// Reversals of `x`: direction changes after travelling more than `band` each way, and the
-/// travel of each finished stroke.
+/// Reversals of `x` (direction changes after a move back of more than `band`, the diagnosis'
+/// own tracking, [`crate::diagnose::residual::reversal_travel`]) and the travel of each
+/// finished stroke, from the start or the last turning point to the next.
 fn reversals(x: &[f64], band: f64) -> (usize, Vec<f64>) {
-    let (mut count, mut travel) = (0, Vec::new());
-    let Some(&first) = x.first() else {
-        return (0, travel);
-    };
-    let (mut dir, mut turn, mut ext) = (0.0f64, first, first);
-    for &v in x {
-        if dir == 0.0 {
-            if (v - turn).abs() > band {
-                dir = (v - turn).signum();
-                ext = v;
-            }
-        } else if (v - ext) * dir > 0.0 {
-            ext = v;
-        } else if (ext - v) * dir > band {
-            count += 1;
-            travel.push((ext - turn).abs());
-            (turn, ext, dir) = (ext, v, -dir);
+    let motion = crate::diagnose::residual::reversal_travel(x, band);
+    let mut turns: Vec<f64> = x.first().copied().into_iter().collect();
+    for k in 1..motion.len() {
+        let ((before, _), (dir, travel)) = (motion[k - 1], motion[k]);
+        if before != 0.0 && dir != before {
+            // the extreme just left: the sample stands `travel` past it in the new direction
+            turns.push(x[k] - dir * travel);
         }
     }
-    (count, travel)
+    let travel = turns.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    (turns.len().saturating_sub(1), travel)
 }
 
 /// The change over the record of an output's trend in time that a fit on its inputs leaves:

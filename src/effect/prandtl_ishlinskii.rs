@@ -436,28 +436,20 @@ mod tests {
                     * (20.0 * (0.7 * t).sin() + 6.0 * (5.3 * t).sin() + 2.0 * (13.0 * t).sin())
             })
             .collect();
+        let worst = |v: &[f64]| {
+            u.iter()
+                .zip(v)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max)
+        };
         for (what, p) in [("classical", classical), ("dead zones", asym)] {
             let inv = p.inverse().unwrap();
-            let y = p.operator().apply(&u);
-            let back = inv.operator().apply(&y);
-            let worst = u
-                .iter()
-                .zip(&back)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
+            let back = worst(&inv.operator().apply(&p.operator().apply(&u)));
+            assert!(back < 1e-9, "{what}: inverse after operator off by {back}");
+            let again = worst(&p.operator().apply(&inv.operator().apply(&u)));
             assert!(
-                worst < 1e-9,
-                "{what}: inverse after operator off by {worst}"
-            );
-            let again = p.operator().apply(&inv.operator().apply(&u));
-            let worst = u
-                .iter()
-                .zip(&again)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
-            assert!(
-                worst < 1e-9,
-                "{what}: operator after inverse off by {worst}"
+                again < 1e-9,
+                "{what}: operator after inverse off by {again}"
             );
         }
         // a static input map has no closed form here: said, not guessed

@@ -81,6 +81,19 @@ pub fn seed_1dof(plant: Plant1, n: usize, seed: u64) -> IoRecord {
     simulate(p, s, Some(n), seed)
 }
 
+/// A broadband record of a 1-DoF plant for identifying a model to compensate with: a 0.9 Hz,
+/// 22 V sine under a 0.5-60 Hz random-phase multisine of 5 V RMS, 40,000 samples at 10 kHz,
+/// 0.01 um of output noise from `seed` (the compensation tests and bench).
+pub fn broadband_1dof(plant: Plant1, seed: u64) -> IoRecord {
+    let (p, _) = builtin(plant.file());
+    simulate(p, BROADBAND_1DOF, None, seed)
+}
+
+const BROADBAND_1DOF: &str = r#"{"name": "broadband_1dof", "sampling_period_s": 0.0001,
+    "samples": 40000, "noise_std": 0.01, "seed": 3, "inputs": [{"sum": [
+        {"sine": {"amplitude": 22.0, "frequency_hz": 0.9}},
+        {"multisine": {"rms": 5.0, "f_min_hz": 0.5, "f_max_hz": 60.0}}]}]}"#;
+
 /// The `seed_2dof` record of the coupled 2-DoF piezo (500 samples, 0.01 um noise from `seed`).
 pub fn seed_2dof(seed: u64) -> IoRecord {
     let (p, s) = builtin("piezo_2dof.json");
