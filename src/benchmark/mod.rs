@@ -55,7 +55,7 @@ pub struct Published {
     pub source: &'static str,
 }
 
-/// The published table (../shared/data/boucwen-benchmark/RESULTS.md), multisine test.
+/// The published table (docs/benchmarks.md gives the sources), multisine test.
 pub const PUBLISHED: [Published; 11] = [
     Published {
         method: "gr-SS-NN (linear-model init.)",
