@@ -348,6 +348,16 @@ pub fn quantile(sorted: &[f64], q: f64) -> f64 {
     sorted[i] + f * (sorted[j] - sorted[i])
 }
 
+/// [`quantile`] of unsorted values, by selection (linear time; `values` is reordered): the
+/// same number as sorting first.
+pub fn quantile_select(values: &mut [f64], q: f64) -> f64 {
+    let x = q.clamp(0.0, 1.0) * (values.len() - 1) as f64;
+    let (i, f) = (x.floor() as usize, x - x.floor());
+    let (_, &mut lo, rest) = values.select_nth_unstable_by(i, f64::total_cmp);
+    let hi = rest.iter().copied().min_by(f64::total_cmp).unwrap_or(lo);
+    lo + f * (hi - lo)
+}
+
 #[cfg(test)]
 mod loop_tests {
     use super::*;
@@ -360,6 +370,19 @@ mod loop_tests {
         let y: Vec<f64> = u.iter().map(|v| 2.0 * v + v * v * v).collect();
         assert!(normalised_loop_area(&u, &y).abs() < 1e-3);
         assert!(branch_gap(&u, &y, 20) < 0.01);
+    }
+
+    #[test]
+    fn selection_quantile_is_the_sorted_one() {
+        let v: Vec<f64> = (0..1001)
+            .map(|k| ((k * 7919) % 1009) as f64 * 0.37 - 3.0)
+            .collect();
+        let mut sorted = v.clone();
+        sorted.sort_by(f64::total_cmp);
+        for q in [0.0, 0.01, 0.25, 0.5, 0.7311, 0.99, 1.0] {
+            let mut w = v.clone();
+            assert_eq!(quantile_select(&mut w, q), quantile(&sorted, q));
+        }
     }
 
     #[test]

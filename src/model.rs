@@ -344,14 +344,18 @@ pub fn predict_finite(model: &dyn Model, io: &IoRecord) -> Result<Vec<Vec<f64>>,
 
 /// Read a model file: a plant file, or a model file with a `format` field.
 pub fn load_model(path: &Path) -> Result<Box<dyn Model>, ModelError> {
-    let text = crate::data::read_json_text(path)?;
-    match crate::data::FileHeader::read(path, &text)?.format_str() {
-        None => Ok(Box::new(PlantSpec::parse(path, &text)?.check(path)?)),
+    parse_model(path, &crate::data::read_json_text(path)?)
+}
+
+/// [`load_model`] of a file's text (`path` labels the errors).
+pub fn parse_model(path: &Path, text: &str) -> Result<Box<dyn Model>, ModelError> {
+    match crate::data::FileHeader::read(path, text)?.format_str() {
+        None => Ok(Box::new(PlantSpec::parse(path, text)?.check(path)?)),
         Some(crate::graybox::FORMAT) => {
-            Ok(Box::new(crate::graybox::FittedGreyBox::parse(path, &text)?))
+            Ok(Box::new(crate::graybox::FittedGreyBox::parse(path, text)?))
         }
         Some(crate::narx::model::FORMAT) => {
-            Ok(Box::new(crate::narx::FittedNarx::from_json(path, &text)?))
+            Ok(Box::new(crate::narx::FittedNarx::from_json(path, text)?))
         }
         Some(other) => Err(ModelError::UnknownFormat {
             path: path.to_path_buf(),

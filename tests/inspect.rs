@@ -36,6 +36,7 @@ fn a_clean_record_gives_nothing_to_report() {
     let (t, u, y) = clean();
     let r = run(&t, &u, &y);
     assert!(r.findings.is_empty(), "{:#?}", r.findings);
+    assert_eq!(r.usable.samples, t.len());
     let input = &r.columns[0];
     assert!(input.reversals.unwrap() >= 4, "{input:?}");
     assert!((r.sampling_period.unwrap() - 1e-4).abs() < 1e-12);
@@ -59,6 +60,8 @@ fn each_damage_is_found_with_its_lines() {
     let r = run(&t, &u, &s);
     assert_eq!(kinds(&r), ["dropout"], "{:#?}", r.findings);
     assert_eq!(r.findings[0].lines, [2002]);
+    // the usable stretch: after the dropout, rows 2300..6000
+    assert_eq!(r.usable.samples, 3700, "{:?}", r.usable);
     // clipping at 80 % of the top
     let top = y.iter().fold(f64::MIN, |m, v| m.max(*v));
     let s: Vec<f64> = y.iter().map(|v| v.min(0.8 * top)).collect();
@@ -76,6 +79,14 @@ fn each_damage_is_found_with_its_lines() {
     let r = run(&g, &u, &y);
     assert_eq!(kinds(&r), ["gap"], "{:#?}", r.findings);
     assert_eq!(r.findings[0].lines, [3003]);
+    // the usable stretch: one side of the gap (the first of two equal ones), rows 0..3000
+    // (lines 3..3002 after the comment and the header)
+    assert_eq!(
+        (r.usable.samples, r.usable.first_line, r.usable.last_line),
+        (3000, 3, 3002),
+        "{:?}",
+        r.usable
+    );
     // a slow drift of 10 % of the range
     let range = top - y.iter().fold(f64::MAX, |m, v| m.min(*v));
     let s: Vec<f64> = y
@@ -127,9 +138,16 @@ fn inspect_from_the_command_line() {
         "jitter",
         "columns",
         "findings",
+        "usable",
     ] {
         assert!(v.get(field).is_some(), "{field}: {v}");
     }
+    // how many samples each modelling command needs, beside the usable stretch
+    let needs = v["usable"]["needs"].as_object().unwrap();
+    assert!(
+        needs.len() == 3 && needs.values().all(|n| n.as_u64().unwrap() >= 10),
+        "{needs:?}"
+    );
     let f = &v["findings"][0];
     for field in ["kind", "column", "count", "lines", "message", "advice"] {
         assert!(f.get(field).is_some(), "{field}: {f}");

@@ -1,5 +1,6 @@
 //! `hystbench compare`: a model against a record: scores and where it fails.
 
+use hystbench::data::inspect::Outliers;
 use hystbench::data::IoRecord;
 use hystbench::diagnose::compare::{compare, OutputComparison};
 use hystbench::diagnose::unit_of;
@@ -13,6 +14,8 @@ pub struct Args {
     /// The record (CSV with the model's input and output columns).
     #[arg(long)]
     pub data: PathBuf,
+    #[command(flatten)]
+    pub screen: crate::cli::ScreenArgs,
     /// The model file.
     #[arg(long)]
     pub model: PathBuf,
@@ -30,9 +33,10 @@ pub struct Args {
 /// Load, select and predict: the common start of compare, diagnose and improve.
 pub fn predict_record(
     data: &std::path::Path,
+    outliers: Outliers,
     model: &dyn Model,
 ) -> anyhow::Result<(IoRecord, Vec<Vec<f64>>)> {
-    let io = model.select(&crate::cli::read_data(data)?)?;
+    let io = crate::cli::read_screened(data, outliers, |r| Ok(model.select(r)?))?;
     // said before predicting: a free run that extrapolates may diverge
     crate::cli::warn_outside(data, &model.outside(&io));
     let pred = predict_io(model, &io)?;
@@ -174,7 +178,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(dir) = &a.report {
         crate::cli::demo::prepare_report_folder(dir, a.force)?;
     }
-    let (io, pred) = predict_record(&a.data, model.as_ref())?;
+    let (io, pred) = predict_record(&a.data, a.screen.outliers, model.as_ref())?;
     let outside = model.outside(&io);
     let cmp = compare(&io, &pred);
     let bands = model.band(&io)?;

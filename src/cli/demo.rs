@@ -168,6 +168,9 @@ fn hidden_effect(out: &Path, records: &Path, md: &mut String) -> anyhow::Result<
     *md += "The record `records/hidden_creep_piezo.csv` comes from a plant with creep; the starting model is a grey-box fit with hysteresis and dynamics only (`hidden_start_model.json`). `hystbench improve` then diagnoses it, adds what is missing and refits:\n\n";
     crate::cli::improve::run(crate::cli::improve::Args {
         data: hidden,
+        screen: crate::cli::ScreenArgs {
+            outliers: hystbench::data::inspect::Outliers::Refuse,
+        },
         model: start_file,
         out: improve_dir.clone(),
         train_fraction: None,

@@ -11,6 +11,8 @@ pub struct Args {
     /// The record (CSV with the model's input and output columns).
     #[arg(long)]
     pub data: PathBuf,
+    #[command(flatten)]
+    pub screen: crate::cli::ScreenArgs,
     /// The model file (plant, grey-box or NARX).
     #[arg(long)]
     pub model: PathBuf,
@@ -82,7 +84,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         hystbench::data::check_writable(f, a.force)?;
     }
     let model = load_model(&a.model)?;
-    let (io, pred) = predict_record(&a.data, model.as_ref())?;
+    let (io, pred) = predict_record(&a.data, a.screen.outliers, model.as_ref())?;
     let mut opts = DiagnoseOptions::default();
     if a.no_refit {
         opts.refit = None;

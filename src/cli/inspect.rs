@@ -30,8 +30,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let rec = crate::cli::read_data(&a.data)?;
     let io = IoRecord::from_record(&rec, a.inputs.as_deref(), a.outputs.as_deref(), false)?;
     let r = inspect(&rec, &io.input_names(), &io.output_names());
+    let needs = needs(io.inputs.len().max(1))?;
     if a.json {
-        crate::cli::print(&serde_json::to_string(&r)?);
+        let mut v = serde_json::to_value(&r)?;
+        v["usable"]["needs"] = needs
+            .iter()
+            .map(|(c, n)| ((*c).to_string(), serde_json::Value::from(*n)))
+            .collect::<serde_json::Map<_, _>>()
+            .into();
+        crate::cli::print(&serde_json::to_string(&v)?);
         return Ok(());
     }
     let mut out = format!(
@@ -58,34 +65,49 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             );
         }
     }
+    out += &format!(
+        "\n  usable in one piece (no gap, no dropout): {} samples, lines {}..{}",
+        r.usable.samples, r.usable.first_line, r.usable.last_line
+    );
+    for (command, n) in &needs {
+        out += &format!(
+            "\n    {command}: needs {n}{}",
+            if r.usable.samples >= *n {
+                ""
+            } else {
+                " (too short)"
+            }
+        );
+    }
     if r.findings.is_empty() {
         out += "\nnothing to report: no spike, dropout, clipping, quantisation, gap, drift; the inputs reverse";
     }
     for f in &r.findings {
-        out += &format!(
-            "\nwarning: {}{}: {}{}; {}",
-            f.kind,
-            f.column
-                .as_ref()
-                .map(|c| format!(" in `{c}`"))
-                .unwrap_or_default(),
-            f.message,
-            if f.lines.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    " (line{} {})",
-                    if f.lines.len() > 1 { "s" } else { "" },
-                    f.lines
-                        .iter()
-                        .map(usize::to_string)
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                )
-            },
-            f.advice
-        );
+        out += &format!("\nwarning: {}", f.summary());
     }
     crate::cli::print(&out);
     Ok(())
+}
+
+/// The fewest samples each modelling command takes on a record of `inputs` inputs (with the
+/// defaults; the grey-box fit with fewer play operators on a short record).
+fn needs(inputs: usize) -> anyhow::Result<Vec<(&'static str, usize)>> {
+    let fit = |effects: &str| -> anyhow::Result<usize> {
+        Ok(hystbench::graybox::GreyBoxConfig::from_effect_list(effects)?.samples_needed(inputs))
+    };
+    // identify: the lags' initial samples and two to train on, in each half
+    let lags = hystbench::narx::NarxConfig::new(Vec::new(), Vec::new())
+        .lags
+        .start();
+    Ok(vec![
+        (
+            "fit --effects hysteresis,dynamics",
+            fit("hysteresis,dynamics")?,
+        ),
+        (
+            "fit --effects hysteresis,creep,dynamics",
+            fit("hysteresis,creep,dynamics")?,
+        ),
+        ("identify (default lags)", 2 * (lags + 2)),
+    ])
 }

@@ -382,8 +382,12 @@ impl TimeSteps {
     pub fn with_gap(t: &[f64], gap: f64) -> TimeSteps {
         let steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
         let mut sorted = steps.clone();
-        sorted.sort_by(f64::total_cmp);
-        let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+        let median = if sorted.is_empty() {
+            0.0
+        } else {
+            let mid = sorted.len() / 2;
+            *sorted.select_nth_unstable_by(mid, f64::total_cmp).1
+        };
         let mut gaps = Vec::new();
         let mut jitter = (0.0, 0);
         for (k, &dt) in steps.iter().enumerate() {

@@ -96,6 +96,16 @@ pub enum DataError {
         name: String,
         value: f64,
     },
+    #[error("{path}: line {line}, column `{column}`: {value:e} is a gross outlier, beyond {ranges} times the column's range from its neighbours (a glitch of the logger; {count} such sample(s), lines {lines}); repair the lines, or pass `--outliers repair` (each replaced by the line between its good neighbours) or `--outliers keep`; `hystbench inspect` lists them all", ranges = crate::data::inspect::GROSS_RANGES)]
+    GrossOutlier {
+        path: PathBuf,
+        line: usize,
+        column: String,
+        value: f64,
+        count: usize,
+        /// The file's lines of the first few (comma-separated).
+        lines: String,
+    },
     #[error("{path}: already exists; pass --force to overwrite it")]
     Exists { path: PathBuf },
     #[error("{path}: cannot write: {source}")]

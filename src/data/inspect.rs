@@ -10,9 +10,9 @@
 //! where it already knows the thing: a clipping limit is the `saturation` effect's
 //! ([`crate::effect::saturation::detect`]), the noise level its estimate.
 
-use super::{Record, TimeSteps};
+use super::{DataError, Record, TimeSteps};
 use crate::effect::saturation;
-use crate::metrics::quantile;
+use crate::metrics::{quantile, quantile_select};
 use serde::Serialize;
 
 /// One thing found, with where and what to do.
@@ -29,6 +29,35 @@ pub struct Finding {
     pub lines: Vec<usize>,
     pub message: String,
     pub advice: String,
+}
+
+impl Finding {
+    /// One line: the kind, the column, what, the lines and what to do.
+    pub fn summary(&self) -> String {
+        format!(
+            "{}{}: {}{}; {}",
+            self.kind,
+            self.column
+                .as_ref()
+                .map(|c| format!(" in `{c}`"))
+                .unwrap_or_default(),
+            self.message,
+            if self.lines.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " (line{} {})",
+                    if self.lines.len() > 1 { "s" } else { "" },
+                    self.lines
+                        .iter()
+                        .map(usize::to_string)
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            },
+            self.advice
+        )
+    }
 }
 
 /// One column's summary.
@@ -61,6 +90,34 @@ pub struct Inspection {
     pub jitter: Option<f64>,
     pub columns: Vec<ColumnSummary>,
     pub findings: Vec<Finding>,
+    /// The longest stretch without a gap or a dropout: what a command can model in one piece.
+    pub usable: Stretch,
+}
+
+/// A stretch of a record, with the file's lines of its first and last samples.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Stretch {
+    pub samples: usize,
+    pub first_line: usize,
+    pub last_line: usize,
+}
+
+/// The longest run of rows in `0..n` that `cuts` leave (each cut: the rows `a..b` out, and a
+/// break before `a`).
+fn longest_stretch(rec: &Record, n: usize, cuts: &mut [(usize, usize)]) -> Stretch {
+    cuts.sort_unstable();
+    let (mut best, mut from) = ((0, 0), 0);
+    for &(a, b) in cuts.iter().chain(std::iter::once(&(n, n))) {
+        if a > from && a - from > best.1 - best.0 {
+            best = (from, a);
+        }
+        from = from.max(b);
+    }
+    Stretch {
+        samples: best.1 - best.0,
+        first_line: rec.format.line_of(best.0),
+        last_line: rec.format.line_of(best.1.max(1) - 1),
+    }
 }
 
 /// A sample farther than this many robust deviations from its neighbours' median, and than
@@ -77,6 +134,23 @@ pub const DROPOUT_RUN: usize = 20;
 /// A drift above this share of the output's range over the record is reported.
 pub const DRIFT_SHARE: f64 = 0.02;
 
+/// A column on a grid of more levels than this (16 bits) is not reported as quantised.
+pub const QUANTISATION_LEVELS: usize = 65_537;
+
+/// The distinct values of `x`, sorted; empty when there are more than `most`.
+fn distinct_levels(x: &[f64], most: usize) -> Vec<f64> {
+    let mut seen = std::collections::HashSet::new();
+    for v in x {
+        // -0 and 0 are one level
+        if seen.insert((v + 0.0).to_bits()) && seen.len() > most {
+            return Vec::new();
+        }
+    }
+    let mut levels: Vec<f64> = seen.into_iter().map(f64::from_bits).collect();
+    levels.sort_unstable_by(f64::total_cmp);
+    levels
+}
+
 /// Lines of the first few of `rows`.
 fn lines(rec: &Record, rows: &[usize]) -> Vec<usize> {
     rows.iter()
@@ -88,7 +162,29 @@ fn lines(rec: &Record, rows: &[usize]) -> Vec<usize> {
 /// Inspect `rec`; `inputs` and `outputs` name the roles (the other columns but time are
 /// `other`).
 pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspection {
+    examine(rec, inputs, outputs).inspection
+}
+
+/// The outliers of one column: all of them, and the gross ones.
+struct ColumnOutliers {
+    column: usize,
+    rows: Vec<usize>,
+    gross: Vec<usize>,
+}
+
+/// What [`inspect`] finds, with the columns whose outliers are repaired (see
+/// [`Outliers::Repair`]).
+struct Examined {
+    inspection: Inspection,
+    cleaned: Vec<Vec<f64>>,
+    outliers: Vec<ColumnOutliers>,
+}
+
+fn examine(rec: &Record, inputs: &[String], outputs: &[String]) -> Examined {
     let n = rec.columns.first().map_or(0, Vec::len);
+    let mut outliers = Vec::new();
+    // rows out of the usable stretch: gaps (a break before the row), dropouts
+    let mut cuts: Vec<(usize, usize)> = Vec::new();
     let mut findings = Vec::new();
     let time = rec.time_column().map(str::to_string);
     let (mut sampling_period, mut jitter) = (None, None);
@@ -98,6 +194,7 @@ pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspectio
             let st = TimeSteps::of(t);
             sampling_period = Some(st.median);
             jitter = (st.median > 0.0).then(|| st.jitter.0 / st.median);
+            cuts.extend(st.gaps.iter().map(|g| (g.0, g.0)));
             if !st.gaps.is_empty() {
                 let rows: Vec<usize> = st.gaps.iter().map(|g| g.0).collect();
                 findings.push(Finding {
@@ -132,7 +229,7 @@ pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspectio
     }
     let ts = sampling_period.unwrap_or(1.0);
     let mut columns = Vec::new();
-    // the columns with their outliers replaced by their neighbours' median, for the checks
+    // the columns with their outliers repaired, for the checks
     // that an outlier would blind (clipping, quantisation, drift)
     let mut cleaned: Vec<Vec<f64>> = rec.columns.clone();
     for (ci, (name, x)) in rec.names.iter().zip(&rec.columns).enumerate() {
@@ -146,10 +243,14 @@ pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspectio
         } else {
             "other"
         };
-        let mut sorted = x.clone();
-        sorted.sort_by(f64::total_cmp);
-        let (min, max) = (sorted[0], sorted[n - 1]);
-        let central = (quantile(&sorted, 0.99) - quantile(&sorted, 0.01)).max(f64::MIN_POSITIVE);
+        let (min, max) = x
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+        let mut work = x.clone();
+        let central = (quantile_select(&mut work, 0.99) - quantile_select(&mut work, 0.01))
+            .max(f64::MIN_POSITIVE);
         let noise = saturation::noise_level(x);
         let c = Some(name.clone());
         // outliers: far from the median of their neighbours
@@ -164,9 +265,8 @@ pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspectio
                 x[k] - w[w.len() / 2]
             })
             .collect();
-        let mut ad: Vec<f64> = dev.iter().map(|d| d.abs()).collect();
-        ad.sort_by(f64::total_cmp);
-        let sigma = 1.4826 * quantile(&ad, 0.5);
+        work.iter_mut().zip(&dev).for_each(|(w, d)| *w = d.abs());
+        let sigma = 1.4826 * quantile_select(&mut work, 0.5);
         // ... and isolated: the samples around it (a glitch of one or two samples) agree with
         // each other (a fast random-step excitation moves on instead)
         let isolated = |k: usize| {
@@ -183,16 +283,29 @@ pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspectio
                     && isolated(k)
             })
             .collect();
-        for &k in &out {
-            cleaned[ci][k] = x[k] - dev[k];
+        // each replaced by the straight line between the nearest good samples either side
+        for (i, &k) in out.iter().enumerate() {
+            let mut a = k - 1;
+            while a > 0 && out[..i].binary_search(&a).is_ok() {
+                a -= 1;
+            }
+            let b = out[i + 1..]
+                .iter()
+                .zip(k + 1..)
+                .take_while(|(o, r)| *o == r)
+                .last()
+                .map_or(k + 1, |(o, _)| o + 1);
+            let (xa, xb) = (x[a], x.get(b).copied().unwrap_or(x[a]));
+            cleaned[ci][k] = xa + (xb - xa) * (k - a) as f64 / (b - a) as f64;
         }
         let x_raw = x;
         let x = &cleaned[ci];
         if !out.is_empty() {
-            let gross = out
+            let gross: Vec<usize> = out
                 .iter()
-                .filter(|&&k| dev[k].abs() > GROSS_RANGES * central)
-                .count();
+                .copied()
+                .filter(|&k| dev[k].abs() > GROSS_RANGES * central)
+                .collect();
             findings.push(Finding {
                 kind: "outlier",
                 column: c.clone(),
@@ -201,10 +314,15 @@ pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspectio
                 message: format!(
                     "{} sample(s) far from their neighbours ({} of them gross, beyond {GROSS_RANGES} times the column's range), the largest {:.4e}",
                     out.len(),
-                    gross,
+                    gross.len(),
                     out.iter().map(|&k| x_raw[k]).fold(0.0f64, |m, v| if v.abs() > m.abs() { v } else { m })
                 ),
-                advice: "remove or repair these lines (a glitch of the logger) before modelling: a model fitted through them learns the glitch".into(),
+                advice: "repair these lines (a glitch of the logger) before modelling, by hand or with `--outliers repair` on the modelling command (each replaced by the line between its good neighbours): a model fitted through them learns the glitch".into(),
+            });
+            outliers.push(ColumnOutliers {
+                column: ci,
+                rows: out,
+                gross,
             });
         }
         // clipping: an output piled up at an extreme (the saturation effect's reading) while
@@ -290,6 +408,8 @@ pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspectio
                     start = k;
                 }
             }
+            // the run's first sample may be the last good one
+            cuts.extend(runs.iter().map(|r| (r.0 + 1, r.0 + r.1)));
             if !runs.is_empty() {
                 let rows: Vec<usize> = runs.iter().map(|r| r.0).collect();
                 findings.push(Finding {
@@ -306,10 +426,9 @@ pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspectio
                 });
             }
         }
-        // quantisation: values on a grid of a step well above rounding
-        let mut uniq = x.clone();
-        uniq.sort_by(f64::total_cmp);
-        uniq.dedup();
+        // quantisation: values on a grid of a step well above rounding, at most
+        // QUANTISATION_LEVELS of them (counted until there are more)
+        let uniq = distinct_levels(x, QUANTISATION_LEVELS);
         if uniq.len() >= 3 {
             let steps: Vec<f64> = uniq.windows(2).map(|w| w[1] - w[0]).collect();
             let q = steps.iter().copied().fold(f64::INFINITY, f64::min);
@@ -319,7 +438,7 @@ pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspectio
                 .filter(|&&d| ((d / q) - (d / q).round()).abs() < 0.01)
                 .count();
             if q > 1e-9 * range.abs()
-                && range / q <= 65_536.0
+                && range / q < QUANTISATION_LEVELS as f64
                 && on_grid as f64 >= 0.99 * steps.len() as f64
                 && (uniq.len() as f64) < 0.5 * n as f64
             {
@@ -392,21 +511,15 @@ pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspectio
             }
             // a drift runs through the record: the trend of each half (over the whole span)
             // agrees with the whole's (a step between a rest and the excitation does not)
-            let h = n / 2;
-            let first: Vec<Vec<f64>> = ins.iter().map(|u| u[..h].to_vec()).collect();
-            let second: Vec<Vec<f64>> = ins.iter().map(|u| u[h..].to_vec()).collect();
-            let part = |ys: &[f64], us: &[Vec<f64>], ts: &[f64]| {
-                let r: Vec<&Vec<f64>> = us.iter().collect();
-                drift(ys, &r, ts).map(|d| 2.0 * d.0)
-            };
             let range = columns
                 .iter()
                 .find(|c| &c.name == name)
                 .map_or(1.0, |c| c.max - c.min);
-            let whole = drift(y, &ins, &t);
-            let a = part(&y[..h], &first, &t[..h]);
-            let b = part(&y[h..], &second, &t[h..]);
-            if let (Some((d, rms)), Some(a), Some(b)) = (whole, a, b) {
+            if let Some(Drift {
+                whole: (d, rms),
+                halves: (a, b),
+            }) = drift(y, &ins, &t)
+            {
                 let through = d.abs() > 2.0 * rms
                     && a.signum() == d.signum()
                     && b.signum() == d.signum()
@@ -427,12 +540,123 @@ pub fn inspect(rec: &Record, inputs: &[String], outputs: &[String]) -> Inspectio
             }
         }
     }
-    Inspection {
-        samples: n,
-        sampling_period,
-        jitter,
-        columns,
-        findings,
+    Examined {
+        inspection: Inspection {
+            samples: n,
+            sampling_period,
+            jitter,
+            columns,
+            findings,
+            usable: longest_stretch(rec, n, &mut cuts),
+        },
+        cleaned,
+        outliers,
+    }
+}
+
+/// What a modelling command does with the outliers of its record.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Outliers {
+    /// Refuse a record with gross outliers (beyond [`GROSS_RANGES`] times a column's range);
+    /// warn of the others.
+    #[default]
+    Refuse,
+    /// Replace every outlier by the straight line between the nearest good samples either
+    /// side.
+    Repair,
+    /// Model the record as it is.
+    Keep,
+}
+
+impl Outliers {
+    pub const NAMES: &'static [&'static str] = &["refuse", "repair", "keep"];
+}
+
+impl std::str::FromStr for Outliers {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "refuse" => Ok(Outliers::Refuse),
+            "repair" => Ok(Outliers::Repair),
+            "keep" => Ok(Outliers::Keep),
+            _ => Err(format!(
+                "unknown outlier policy `{s}`; one of: {}",
+                Outliers::NAMES.join(", ")
+            )),
+        }
+    }
+}
+
+/// What [`screen`] found and did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Screening {
+    /// The findings left to warn of (repaired outliers are not among them).
+    pub findings: Vec<Finding>,
+    /// Samples repaired, and the file's lines of the first few.
+    pub repaired: usize,
+    pub repaired_lines: Vec<usize>,
+}
+
+/// The checks of [`inspect`] before modelling: a record with gross outliers is refused (the
+/// error names the line, the column and the value) unless `policy` repairs or keeps them;
+/// repaired outliers are replaced in `rec`.
+pub fn screen(
+    rec: &mut Record,
+    inputs: &[String],
+    outputs: &[String],
+    policy: Outliers,
+) -> Result<Screening, DataError> {
+    let Examined {
+        inspection,
+        cleaned,
+        outliers,
+    } = examine(rec, inputs, outputs);
+    let mut findings = inspection.findings;
+    match policy {
+        Outliers::Keep => Ok(Screening {
+            findings,
+            repaired: 0,
+            repaired_lines: Vec::new(),
+        }),
+        Outliers::Refuse => match outliers.iter().find(|o| !o.gross.is_empty()) {
+            Some(o) => {
+                let k = o.gross[0];
+                let all: usize = outliers.iter().map(|o| o.gross.len()).sum();
+                Err(DataError::GrossOutlier {
+                    path: rec.path.clone(),
+                    line: rec.format.line_of(k),
+                    column: rec.names[o.column].clone(),
+                    value: rec.columns[o.column][k],
+                    count: all,
+                    lines: lines(rec, &o.gross)
+                        .iter()
+                        .map(usize::to_string)
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                })
+            }
+            None => Ok(Screening {
+                findings,
+                repaired: 0,
+                repaired_lines: Vec::new(),
+            }),
+        },
+        Outliers::Repair => {
+            findings.retain(|f| f.kind != "outlier");
+            let mut rows = Vec::new();
+            for o in &outliers {
+                for &k in &o.rows {
+                    rec.columns[o.column][k] = cleaned[o.column][k];
+                }
+                rows.extend_from_slice(&o.rows);
+            }
+            rows.sort_unstable();
+            Ok(Screening {
+                findings,
+                repaired: rows.len(),
+                repaired_lines: lines(rec, &rows),
+            })
+        }
     }
 }
 
@@ -453,55 +677,129 @@ fn reversals(x: &[f64], band: f64) -> (usize, Vec<f64>) {
     (turns.len().saturating_sub(1), travel)
 }
 
+/// A trend fitted over the record and over each half.
+struct Drift {
+    /// The change over the record, and the fit's residual RMS.
+    whole: (f64, f64),
+    /// The trend of each half, as a change over the whole record.
+    halves: (f64, f64),
+}
+
+/// The regressors of [`drift`] at one sample: 1, t, and per input u, u^2, u^3 and nine plays.
+struct DriftRow<'a> {
+    inputs: &'a [&'a Vec<f64>],
+    amps: Vec<f64>,
+    plays: Vec<crate::effect::play::Play>,
+    row: Vec<f64>,
+}
+
+const DRIFT_PLAYS: [f64; 9] = [0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.85];
+
+impl<'a> DriftRow<'a> {
+    fn new(inputs: &'a [&'a Vec<f64>]) -> Self {
+        let amps: Vec<f64> = inputs
+            .iter()
+            .map(|u| u.iter().fold(0.0f64, |m, v| m.max(v.abs())))
+            .collect();
+        let plays = amps
+            .iter()
+            .flat_map(|&amp| {
+                DRIFT_PLAYS
+                    .iter()
+                    .map(move |share| crate::effect::play::Play::new(share * amp, 0.0))
+            })
+            .collect();
+        DriftRow {
+            inputs,
+            row: vec![0.0; 2 + inputs.len() * (3 + DRIFT_PLAYS.len())],
+            amps,
+            plays,
+        }
+    }
+
+    /// The row of sample `k` (samples in order: the plays step).
+    fn at(&mut self, k: usize, time: f64) -> &[f64] {
+        use crate::effect::Operator;
+        self.row[0] = 1.0;
+        self.row[1] = time;
+        let mut c = 2;
+        for (i, u) in self.inputs.iter().enumerate() {
+            let (v, amp) = (u[k], self.amps[i]);
+            self.row[c] = v;
+            self.row[c + 1] = v * v / amp.max(f64::MIN_POSITIVE);
+            self.row[c + 2] = v * v * v / (amp * amp).max(f64::MIN_POSITIVE);
+            c += 3;
+            for play in &mut self.plays[i * DRIFT_PLAYS.len()..(i + 1) * DRIFT_PLAYS.len()] {
+                self.row[c] = play.step(v);
+                c += 1;
+            }
+        }
+        &self.row
+    }
+}
+
 /// The change over the record of an output's trend in time that a fit on its inputs leaves:
-/// least squares of y on [1, t, and per input u, u^2, u^3 and nine plays of it].
+/// least squares of y on [1, t, and per input u, u^2, u^3 and nine plays of it], over the
+/// record and over each half (with the whole record's time scale).
 /// Also the fit's residual RMS: a trend is only told from a misfit that happens to follow the
 /// excitation in time (a chirp) when it stands above the residual.
-fn drift(y: &[f64], inputs: &[&Vec<f64>], t: &[f64]) -> Option<(f64, f64)> {
+/// Normal equations accumulated sample by sample: memory constant, time linear in the record.
+fn drift(y: &[f64], inputs: &[&Vec<f64>], t: &[f64]) -> Option<Drift> {
     let n = y.len();
     let span = t.last()? - t.first()?;
     if span <= 0.0 {
         return None;
     }
-    let mut cols: Vec<Vec<f64>> = vec![vec![1.0; n], t.iter().map(|v| (v - t[0]) / span).collect()];
-    for u in inputs {
-        let amp = u.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        cols.push(u.to_vec());
-        cols.push(
-            u.iter()
-                .map(|v| v * v / amp.max(f64::MIN_POSITIVE))
-                .collect(),
-        );
-        cols.push(
-            u.iter()
-                .map(|v| v * v * v / (amp * amp).max(f64::MIN_POSITIVE))
-                .collect(),
-        );
-        for share in [0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.85] {
-            let mut play = crate::effect::play::Play::new(share * amp, 0.0);
-            cols.push(crate::effect::Operator::apply(&mut play, u));
+    let p = 2 + inputs.len() * (3 + DRIFT_PLAYS.len());
+    let h = n / 2;
+    // packed upper triangles and right-hand sides of the two halves
+    let mut ata = [vec![0.0; p * (p + 1) / 2], vec![0.0; p * (p + 1) / 2]];
+    let mut atb = [vec![0.0; p], vec![0.0; p]];
+    let mut rows = DriftRow::new(inputs);
+    for k in 0..n {
+        let half = usize::from(k >= h);
+        let r = rows.at(k, (t[k] - t[0]) / span);
+        let (a, b) = (&mut ata[half], &mut atb[half]);
+        let mut idx = 0;
+        for i in 0..p {
+            let ri = r[i];
+            b[i] += ri * y[k];
+            for &rj in &r[i..] {
+                a[idx] += ri * rj;
+                idx += 1;
+            }
         }
     }
-    // normal equations (p x p): memory and time linear in the record
-    let p = cols.len();
-    let mut ata = nalgebra::DMatrix::<f64>::zeros(p, p);
-    let mut atb = nalgebra::DVector::<f64>::zeros(p);
-    for i in 0..p {
-        for j in i..p {
-            let v: f64 = cols[i].iter().zip(&cols[j]).map(|(a, b)| a * b).sum();
-            ata[(i, j)] = v;
-            ata[(j, i)] = v;
+    let solve = |parts: &[usize]| {
+        let mut m = nalgebra::DMatrix::<f64>::zeros(p, p);
+        let mut v = nalgebra::DVector::<f64>::zeros(p);
+        for &part in parts {
+            let mut idx = 0;
+            for i in 0..p {
+                v[i] += atb[part][i];
+                for j in i..p {
+                    m[(i, j)] += ata[part][idx];
+                    if j != i {
+                        m[(j, i)] += ata[part][idx];
+                    }
+                    idx += 1;
+                }
+            }
         }
-        atb[i] = cols[i].iter().zip(y).map(|(a, b)| a * b).sum();
-    }
-    let sol = ata.svd(true, true).solve(&atb, 1e-12).ok()?;
-    let rms = ((0..n)
+        m.svd(true, true).solve(&v, 1e-12).ok()
+    };
+    let sol = solve(&[0, 1])?;
+    let (first, second) = (solve(&[0])?, solve(&[1])?);
+    let mut rows = DriftRow::new(inputs);
+    let rss: f64 = (0..n)
         .map(|k| {
-            let f: f64 = (0..p).map(|j| sol[j] * cols[j][k]).sum();
+            let r = rows.at(k, (t[k] - t[0]) / span);
+            let f: f64 = r.iter().zip(sol.iter()).map(|(a, b)| a * b).sum();
             (f - y[k]).powi(2)
         })
-        .sum::<f64>()
-        / n as f64)
-        .sqrt();
-    Some((sol[1], rms))
+        .sum();
+    Some(Drift {
+        whole: (sol[1], (rss / n as f64).sqrt()),
+        halves: (first[1], second[1]),
+    })
 }

@@ -106,6 +106,18 @@ impl Dynamics {
         m[(1, 0)] = -wn * wn;
         m[(1, 1)] = -2.0 * z * wn;
         m[(1, 2)] = self.dc_gain * wn * wn;
+        // a finite matrix: the scaling and squaring of its exponential is then bounded (at most
+        // ~1,000 squarings); an overflowing one (a damping ratio of 1e308) would not end
+        if let Some(v) = (m * ts).iter().find(|v| !v.is_finite()) {
+            return Err(EffectError::Invalid {
+                field: "damping_ratio".into(),
+                value: z,
+                rule: format!(
+                    "with natural_frequency_hz {} and dc_gain {} makes the mode's state matrix overflow ({v}); a mode this damped is a first-order lag: give a smaller damping ratio",
+                    self.natural_frequency_hz, self.dc_gain
+                ),
+            });
+        }
         let e = expm3(&(m * ts));
         Ok((
             Matrix2::new(e[(0, 0)], e[(0, 1)], e[(1, 0)], e[(1, 1)]),

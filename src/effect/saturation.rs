@@ -136,8 +136,7 @@ pub fn noise_level(y: &[f64]) -> f64 {
     if d.is_empty() {
         return 0.0;
     }
-    d.sort_by(f64::total_cmp);
-    1.4826 * quantile(&d, 0.5) / 6f64.sqrt()
+    1.4826 * crate::metrics::quantile_select(&mut d, 0.5) / 6f64.sqrt()
 }
 
 /// Samples within eight noise levels of an extreme must outnumber those in the next band of

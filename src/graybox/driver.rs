@@ -126,6 +126,36 @@ impl GreyBoxConfig {
         }
     }
 
+    /// The free parameters of one output's model on a record of `inputs` inputs (each path's
+    /// terms, the output's own, and a margin of six for the linear dynamics' initial state).
+    fn parameters(&self, inputs: usize) -> usize {
+        let chosen = self.chosen();
+        let (mut per_path, mut per_output) = (1, 0);
+        for c in &chosen {
+            let (p, o) = c.effect.parameter_count(c.variant, self.options.plays);
+            per_path += p;
+            per_output += o;
+        }
+        let paths = chosen
+            .iter()
+            .find_map(|c| c.effect.path_inputs(inputs, 0))
+            .map_or(1, |p| p.len());
+        per_path * paths + 1 + per_output + 6
+    }
+
+    /// The fewest samples [`GreyBoxConfig::fit`] takes on a record of `inputs` inputs (with
+    /// fewer play operators on a short record when `adapt_plays` is on).
+    pub fn samples_needed(&self, inputs: usize) -> usize {
+        let per = self.options.samples_per_parameter.max(1);
+        let mut fewest = self.options.plays;
+        if self.options.adapt_plays {
+            fewest = FEWER_PLAYS.into_iter().fold(fewest, usize::min);
+        }
+        let mut c = self.clone();
+        c.options.plays = fewest;
+        (per * c.parameters(inputs)).max(100)
+    }
+
     /// Check that the record can support this model: enough samples for the parameters,
     /// outputs and inputs that move, and what each effect needs.
     fn check_record(&self, rec: &IoRecord) -> Result<(), GreyBoxError> {
@@ -158,17 +188,7 @@ impl GreyBoxConfig {
                 .check_record(&view, c.variant)
                 .map_err(|e| self.record_error(rec, c.effect.name().as_str(), e))?;
         }
-        let (mut per_path, mut per_output) = (1, 0);
-        for c in &chosen {
-            let (p, o) = c.effect.parameter_count(c.variant, self.options.plays);
-            per_path += p;
-            per_output += o;
-        }
-        let paths = chosen
-            .iter()
-            .find_map(|c| c.effect.path_inputs(rec.inputs.len(), 0))
-            .map_or(1, |p| p.len());
-        let params = per_path * paths + 1 + per_output + 6;
+        let params = self.parameters(rec.inputs.len());
         let per = self.options.samples_per_parameter.max(1);
         let needed = (per * params).max(100);
         if n < needed {

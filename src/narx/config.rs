@@ -349,6 +349,13 @@ impl RobustSettings {
     }
 }
 
+/// The widest hidden layer [`NarxConfig::check`] accepts.
+pub const MAX_NEURONS: usize = 4096;
+/// The most hidden layers [`NarxConfig::check`] accepts.
+pub const MAX_LAYERS: usize = 16;
+// the refusal's message says these numbers
+const _: () = assert!(MAX_NEURONS == 4096 && MAX_LAYERS == 16);
+
 impl NarxConfig {
     /// A configuration with the study's shape (4 lags, 10 neurons, one hidden layer) and the
     /// default protocol.
@@ -427,6 +434,13 @@ impl NarxConfig {
         }
         if self.layers == 0 {
             return bad("layers", "0".into(), "needs at least one hidden layer");
+        }
+        if self.neurons > MAX_NEURONS || self.layers > MAX_LAYERS {
+            return bad(
+                if self.neurons > MAX_NEURONS { "neurons" } else { "layers" },
+                format!("{} x {}", self.neurons, self.layers),
+                "at most 4096 neurons a layer and 16 layers (a NARX model of a hysteretic device needs tens)",
+            );
         }
         if self.interaction == Interaction::Additive && self.neurons < self.inputs.len() {
             return bad(

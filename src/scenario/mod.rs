@@ -38,6 +38,9 @@ impl NoiseLevel {
     }
 }
 
+/// The longest scenario (11 hours at 10 kHz): a signal of this many samples takes 3.2 GB.
+pub const MAX_SAMPLES: usize = 400_000_000;
+
 /// Train/test split in samples (the record is written whole; the split travels in its sidecar).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -110,6 +113,13 @@ impl ScenarioSpec {
                 "samples",
                 self.samples.to_string(),
                 "must be at least 2",
+            ));
+        }
+        if self.samples > MAX_SAMPLES {
+            return Err(invalid(
+                "samples",
+                self.samples.to_string(),
+                &format!("must be at most {MAX_SAMPLES} (3.2 GB a signal, several signals in memory at once); simulate a longer experiment as several scenarios, one after the other"),
             ));
         }
         if self.inputs.is_empty() {
