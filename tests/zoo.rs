@@ -262,6 +262,44 @@ fn a_small_zoo_is_scored_against_the_linear_baseline() {
             }
         }
     }
+    // in two parts (two processes, as a cluster's array job), merged: the same scores but the
+    // times; an incomplete set of parts is refused
+    let parts: Vec<_> = ["1/2", "2/2"]
+        .iter()
+        .map(|k| {
+            std::process::Command::new(env!("CARGO_BIN_EXE_hystbench"))
+                .args(["zoo", "score", s(&z), "--quiet", "--shard", k])
+                .output()
+                .unwrap()
+        })
+        .collect();
+    for o in &parts {
+        assert!(o.status.success(), "{}", stderr(o));
+    }
+    std::fs::rename(z.join("score/part-2-of-2.json"), t.path().join("p2.json")).unwrap();
+    let o = hystbench(&["zoo", "score", s(&z), "--merge"]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("2/2 missing"),
+        "{}",
+        stderr(&o)
+    );
+    std::fs::rename(t.path().join("p2.json"), z.join("score/part-2-of-2.json")).unwrap();
+    let o = hystbench(&["zoo", "score", s(&z), "--merge", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let merged: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    fn timeless(v: &serde_json::Value) -> serde_json::Value {
+        match v {
+            serde_json::Value::Object(m) => m
+                .iter()
+                .filter(|(k, _)| !k.contains("seconds"))
+                .map(|(k, x)| (k.clone(), timeless(x)))
+                .collect::<serde_json::Map<_, _>>()
+                .into(),
+            serde_json::Value::Array(a) => a.iter().map(timeless).collect(),
+            x => x.clone(),
+        }
+    }
+    assert_eq!(timeless(&merged), timeless(&v));
 }
 
 /// `zoo loop`: on a small development zoo (seed 7, long and short 1-DoF members, first 3,000

@@ -30,14 +30,21 @@ pub enum Which {
 pub struct Args {
     /// The benchmark.
     pub which: Which,
-    /// The data folder. boucwen: boucwen_train_multisine_dynonet.csv, boucwen_test_multisine.csv
-    /// and boucwen_test_sinesweep.csv (default ../shared/data/boucwen-benchmark); mr-damper:
-    /// earthquake_validation.csv and the 1 ms sine records (default ../shared/data/mr-damper-utfsm).
+    /// The data folder. boucwen: the Bouc-Wen benchmark's records (Noel and Schoukens 2016,
+    /// nonlinearbenchmark.org; 4TU.ResearchData doi:10.4121/12967592) as CSV with header
+    /// `k,t_s,u_N,y_m`: boucwen_train_multisine_dynonet.csv (the training record as the dynoNet
+    /// repository ships it), boucwen_test_multisine.csv and boucwen_test_sinesweep.csv (the two
+    /// test records also ship in this repository's tests/data). mr-damper: the UTFSM MR damper
+    /// records (github.com/DanielMaurelE/vRTHS_AMBC_MRdamper, MIT): earthquake_validation.csv
+    /// and the 1 ms sine records (docs/benchmarks.md lists the columns).
     #[arg(long)]
-    pub data_dir: Option<PathBuf>,
+    pub data_dir: PathBuf,
     /// Print only `{"narx": {...}, "greybox": {...}}`.
     #[arg(long)]
     pub json: bool,
+    /// No progress spinner (it shows only when standard error is a terminal).
+    #[arg(long)]
+    pub quiet: bool,
     /// mr-damper: write the free-run predictions (one CSV per current) and the result JSON
     /// into this folder (which must exist).
     #[arg(long)]
@@ -45,14 +52,6 @@ pub struct Args {
     /// Overwrite existing files in --out.
     #[arg(long)]
     pub force: bool,
-}
-
-/// Default data folder of each benchmark.
-pub fn default_data_dir(which: Which) -> PathBuf {
-    PathBuf::from(match which {
-        Which::Boucwen => "../shared/data/boucwen-benchmark",
-        Which::MrDamper => "../shared/data/mr-damper-utfsm",
-    })
 }
 
 /// Trains the NARX on the training record and scores it.
@@ -104,10 +103,11 @@ pub fn json_line(narx: &TestScores, greybox: &TestScores) -> String {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let data_dir = args
-        .data_dir
-        .clone()
-        .unwrap_or_else(|| default_data_dir(args.which));
+    let data_dir = args.data_dir.clone();
+    let _spinner = crate::cli::progress::Progress::spinner(
+        &format!("benchmark {:?} on {}", args.which, data_dir.display()),
+        args.quiet,
+    );
     if args.which == Which::MrDamper {
         return super::benchmark_mr::run(&data_dir, args.json, args.out.as_deref(), args.force);
     }
@@ -162,7 +162,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         fit.iterations, fit.start_rms, fit.train_rms, g.mass_kg, g.damping_ns_per_m,
         g.stiffness_n_per_m, g.alpha, g.gamma, g.delta
     );
-    s += "published values: ../shared/data/boucwen-benchmark/RESULTS.md (multisine only; no reliable sweep numbers found)\n";
+    s += "published values: docs/benchmarks.md (multisine only; no reliable sweep numbers found)\n";
     super::print(&s);
     Ok(())
 }

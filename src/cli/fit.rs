@@ -18,6 +18,8 @@ pub struct Args {
     /// Record (CSV with a time column `t`, inputs `u` or `u1,u2..`, outputs `y` or `y1,y2..`).
     #[arg(long)]
     pub data: PathBuf,
+    #[command(flatten)]
+    pub screen: crate::cli::ScreenArgs,
     /// Input columns (default `u` or `u1,u2,..`).
     #[arg(long, value_delimiter = ',')]
     pub inputs: Vec<String>,
@@ -44,6 +46,9 @@ pub struct Args {
     /// Print {"effects": [...], "rmse": .., "r2": ..} (and per output for several outputs).
     #[arg(long)]
     pub json: bool,
+    /// No progress spinner (it shows only when standard error is a terminal).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// The `--json` summary: mean RMSE and R^2 over outputs, and each output for several.
@@ -82,11 +87,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     check_writable(&a.out, a.force)?;
-    let rec = crate::cli::read_data(&a.data)?;
-    let io = IoRecord::from_record(&rec, Some(&a.inputs), Some(&a.outputs), true)?;
+    let io = crate::cli::read_screened(&a.data, a.screen.outliers, |r| {
+        Ok(IoRecord::from_record(
+            r,
+            Some(&a.inputs),
+            Some(&a.outputs),
+            true,
+        )?)
+    })?;
+    let spinner = crate::cli::progress::Progress::spinner(
+        &format!("fitting {} to {} samples", cfg.effect_list(), io.len()),
+        a.quiet,
+    );
     let model = cfg
         .fit(&io)
         .with_context(|| format!("fitting {}", cfg.effect_list()))?;
+    drop(spinner);
     model
         .save(&a.out, a.force)
         .with_context(|| format!("writing {}", a.out.display()))?;

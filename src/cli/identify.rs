@@ -3,6 +3,7 @@
 
 use anyhow::Context;
 use clap::Args;
+use hystbench::data::inspect::Outliers;
 use hystbench::data::{check_writable, write_atomic, IoRecord};
 use hystbench::effect::EffectName;
 use hystbench::effect::FeatureSpec;
@@ -16,6 +17,8 @@ pub struct IdentifyArgs {
     /// Training record (CSV); without --test its first half trains and its second half tests.
     #[arg(long)]
     pub data: PathBuf,
+    #[command(flatten)]
+    pub screen: crate::cli::ScreenArgs,
     /// Separate test record with the same columns.
     #[arg(long)]
     pub test: Option<PathBuf>,
@@ -59,6 +62,9 @@ pub struct IdentifyArgs {
     /// Print one JSON object with the scores instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// No progress spinner (it shows only when standard error is a terminal).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// Network and training settings shared by `identify` and `sweep`.
@@ -188,26 +194,26 @@ pub fn load_records(
     test: Option<&PathBuf>,
     inputs: &[String],
     outputs: &[String],
+    outliers: Outliers,
 ) -> anyhow::Result<(IoRecord, IoRecord)> {
     let sel = |v: &[String]| (!v.is_empty()).then(|| v.to_vec());
     let (i, o) = (sel(inputs), sel(outputs));
-    let rec = IoRecord::from_record(
-        &crate::cli::read_data(data)?,
-        i.as_deref(),
-        o.as_deref(),
-        true,
-    )?;
+    let rec = crate::cli::read_screened(data, outliers, |r| {
+        Ok(IoRecord::from_record(r, i.as_deref(), o.as_deref(), true)?)
+    })?;
     match test {
         None => Ok(rec.split_halves()),
         Some(t) => {
             let names_i = rec.input_names();
             let names_o = rec.output_names();
-            let te = IoRecord::from_record(
-                &crate::cli::read_data(t)?,
-                Some(&names_i),
-                Some(&names_o),
-                true,
-            )?;
+            let te = crate::cli::read_screened(t, outliers, |r| {
+                Ok(IoRecord::from_record(
+                    r,
+                    Some(&names_i),
+                    Some(&names_o),
+                    true,
+                )?)
+            })?;
             Ok((rec, te))
         }
     }
@@ -264,7 +270,13 @@ pub fn feature_specs(names: &[String], train: &IoRecord) -> anyhow::Result<Vec<F
 /// Run `identify`.
 pub fn run(args: IdentifyArgs) -> anyhow::Result<()> {
     check_writable(&args.out, args.force)?;
-    let (train, test) = load_records(&args.data, args.test.as_ref(), &args.inputs, &args.outputs)?;
+    let (train, test) = load_records(
+        &args.data,
+        args.test.as_ref(),
+        &args.inputs,
+        &args.outputs,
+        args.screen.outliers,
+    )?;
     let cfg = args.net.config(
         train.input_names(),
         train.output_names(),
@@ -304,9 +316,14 @@ fn run_with(
     train: IoRecord,
     test: IoRecord,
 ) -> anyhow::Result<()> {
+    let spinner = crate::cli::progress::Progress::spinner(
+        &format!("identifying on {} samples", train.len()),
+        args.quiet,
+    );
     let model: FittedNarx = cfg
         .fit(&train)
         .context("training failed; nothing written")?;
+    drop(spinner);
     // the halves of one record: a grey-box base runs on through the training half
     let eval = if args.test.is_none() {
         model.evaluate_split(&train, &test)?

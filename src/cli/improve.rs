@@ -18,6 +18,8 @@ pub struct Args {
     /// The record (CSV with the model's input and output columns).
     #[arg(long)]
     pub data: PathBuf,
+    #[command(flatten)]
+    pub screen: crate::cli::ScreenArgs,
     /// The starting model: a grey-box model file or a plant file.
     #[arg(long)]
     pub model: PathBuf,
@@ -43,10 +45,10 @@ pub struct Args {
     pub quiet: bool,
 }
 
-/// Print the loop's progress as it goes (nothing but the stop notice when `quiet`) and save
+/// Print the loop's progress as it goes (on `log`: nothing but the stop notice when quiet) and save
 /// each chosen model into `out` as soon as it is fitted (the first error is kept in `saved`).
 fn show<'a>(
-    quiet: bool,
+    log: &'a crate::cli::progress::Progress,
     out: &'a std::path::Path,
     saved: &'a mut anyhow::Result<()>,
 ) -> impl FnMut(Progress) + 'a {
@@ -62,18 +64,24 @@ fn show<'a>(
             rmse,
             r2,
             missing,
-        } if !quiet => eprintln!(
-            "step {step}: {} | RMS error {rmse:.4} | R^2 {} | missing: {}",
-            effect_list(effects),
-            r2.map_or("undefined".into(), |v| format!("{v:.5}")),
-            missing.map_or("nothing significant".into(), |m| m.to_string())
-        ),
-        Progress::NoGain => eprintln!("the error did not fall with the added effect; stopping"),
-        Progress::Fitting(list) if !quiet => eprintln!("fitting {list} ..."),
-        Progress::Skipped(list, why) if !quiet => eprintln!("left out {list}: {why}"),
-        Progress::Tried(tried) if !quiet => {
+        } => {
+            log.inc();
+            log.line(&format!(
+                "step {step}: {} | RMS error {rmse:.4} | R^2 {} | missing: {}",
+                effect_list(effects),
+                r2.map_or("undefined".into(), |v| format!("{v:.5}")),
+                missing.map_or("nothing significant".into(), |m| m.to_string())
+            ))
+        }
+        Progress::NoGain => log.notice("the error did not fall with the added effect; stopping"),
+        Progress::Fitting(list) => log.line(&format!("fitting {list} ...")),
+        Progress::Skipped(list, why) => log.line(&format!("left out {list}: {why}")),
+        Progress::Tried(tried) => {
             let list: Vec<String> = tried.iter().map(|(e, r)| format!("{e} {r:.4}")).collect();
-            eprintln!("tried: {} (RMS error); keeping the best", list.join(", "));
+            log.line(&format!(
+                "tried: {} (RMS error); keeping the best",
+                list.join(", ")
+            ));
         }
         _ => {}
     }
@@ -89,20 +97,21 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     opts.check()?;
     crate::cli::demo::prepare_report_folder(&a.out, a.force)?;
     let model: Box<dyn Model> = load_model(&a.model)?;
-    let rec = crate::cli::read_data(&a.data)?;
-    let io_all = model.select(&rec)?;
+    let io_all = crate::cli::read_screened(&a.data, a.screen.outliers, |r| Ok(model.select(r)?))?;
     let Ladder {
         mut rungs,
         prediction: pred,
         held_out_from: from,
     } = {
         let mut saved = Ok(());
+        // the steps the loop may take: the starting model's and one per added effect
+        let log = crate::cli::progress::Progress::bar(1 + a.max_steps as u64, "steps", a.quiet);
         let ladder = improve(
             model,
             config,
             &io_all,
             &opts,
-            &mut show(a.quiet, &a.out, &mut saved),
+            &mut show(&log, &a.out, &mut saved),
         );
         saved?;
         ladder?

@@ -4,6 +4,7 @@
 //! `anyhow::Result`: the only place where errors of different modules meet.
 
 use clap::{Parser, Subcommand};
+use hystbench::data::inspect::Outliers;
 
 pub mod benchmark;
 pub mod benchmark_mr;
@@ -18,6 +19,7 @@ pub mod improve;
 pub mod inspect;
 pub mod plot;
 pub mod predict;
+pub mod progress;
 pub mod simulate;
 pub mod split;
 pub mod sweep;
@@ -97,7 +99,6 @@ pub fn warn_outside(record: &std::path::Path, outside: &[hystbench::narx::region
     }
 }
 
-/// Print to standard output, ending with a newline; a closed pipe (`| head`) is not an error.
 /// Read a data file through the one reading path, and say on standard error what it accepted
 /// beyond a plain CSV (a `;` separator, decimal commas, comments, units).
 pub fn read_data(
@@ -111,6 +112,83 @@ pub fn read_data(
     Ok(rec)
 }
 
+/// What a modelling command does with a record's outliers (the checks of `inspect`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct ScreenArgs {
+    /// Samples far from their neighbours (`hystbench inspect` lists them): `refuse` a record
+    /// with gross ones (beyond 10 times a column's range), `repair` them all (each replaced by
+    /// the straight line between its good neighbours) or `keep` them.
+    #[arg(long, default_value = "refuse", value_parser = choice::<Outliers>(Outliers::NAMES))]
+    pub outliers: Outliers,
+}
+
+/// Read a record for modelling: the columns `select` picks, after the checks of `inspect`
+/// (gross outliers refused, repaired or kept as `outliers` says; what else they find is said on
+/// standard error, one line each).
+pub fn read_screened(
+    path: &std::path::Path,
+    outliers: Outliers,
+    select: impl Fn(&hystbench::data::Record) -> anyhow::Result<hystbench::data::IoRecord>,
+) -> anyhow::Result<hystbench::data::IoRecord> {
+    let mut rec = read_data(path)?;
+    let io = select(&rec)?;
+    let s = hystbench::data::inspect::screen(
+        &mut rec,
+        &io.input_names(),
+        &io.output_names(),
+        outliers,
+    )?;
+    for f in &s.findings {
+        eprintln!("warning: {}: {}", path.display(), f.summary());
+    }
+    if s.repaired == 0 {
+        return Ok(io);
+    }
+    eprintln!(
+        "note: {}: {} outlier(s) repaired (each replaced by the line between its good neighbours), lines {}",
+        path.display(),
+        s.repaired,
+        s.repaired_lines
+            .iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    select(&rec)
+}
+
+/// The K-th of N parts of a job (1 <= K <= N): the items (a sweep's settings, a zoo's members)
+/// whose position i has i % N = K - 1.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub k: usize,
+    pub n: usize,
+}
+
+impl std::str::FromStr for Shard {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let bad = || format!("`{s}`: give the part as K/N with 1 <= K <= N, e.g. 2/8");
+        let (k, n) = s.split_once('/').ok_or_else(bad)?;
+        let (k, n): (usize, usize) = (
+            k.trim().parse().map_err(|_| bad())?,
+            n.trim().parse().map_err(|_| bad())?,
+        );
+        if k == 0 || k > n {
+            return Err(bad());
+        }
+        Ok(Shard { k, n })
+    }
+}
+
+impl Shard {
+    /// Whether item `i` is in this part.
+    pub fn holds(&self, i: usize) -> bool {
+        i % self.n == self.k - 1
+    }
+}
+
+/// Print to standard output, ending with a newline; a closed pipe (`| head`) is not an error.
 pub fn print(text: &str) {
     use std::io::Write;
     let mut out = std::io::stdout().lock();

@@ -3,6 +3,7 @@
 //! laid out like the study's tables.
 
 use super::identify::{load_records, NetArgs};
+use super::Shard;
 use anyhow::Context;
 use clap::Args;
 use hystbench::data::{check_writable, OutputGuard};
@@ -12,14 +13,22 @@ use hystbench::narx::NarxConfig;
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Train a grid of NARX settings and report one-step and free-run R^2 for each.
 #[derive(Debug, Clone, Args)]
+#[command(
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true,
+    after_help = "A grid larger than one machine: run `--shard K/N` for K = 1..N (each a job of a cluster scheduler, the same seeds per setting as the whole grid), then `hystbench sweep merge DIR... --out DIR`. See docs/cluster.md."
+)]
 pub struct SweepArgs {
+    #[command(subcommand)]
+    pub merge: Option<SweepSub>,
     /// Record (CSV); first half trains, second half tests (unless --test).
-    #[arg(long)]
-    pub data: PathBuf,
+    #[arg(long, required = true)]
+    pub data: Option<PathBuf>,
+    #[command(flatten)]
+    pub screen: crate::cli::ScreenArgs,
     /// Separate test record.
     #[arg(long)]
     pub test: Option<PathBuf>,
@@ -43,15 +52,23 @@ pub struct SweepArgs {
     pub batch: Vec<usize>,
     #[command(flatten)]
     pub net: SweepNetArgs,
-    /// Folder for results.csv and report.md (created if missing).
-    #[arg(long)]
-    pub out: PathBuf,
+    /// Folder for results.csv and report.md (created if missing); with --shard, for
+    /// results.csv and shard.json of that part.
+    #[arg(long, required = true)]
+    pub out: Option<PathBuf>,
+    /// Run only the K-th of N parts of the grid (settings K, K+N, K+2N... in report order),
+    /// each with the seed it has in the whole grid; `sweep merge` joins the parts.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<Shard>,
     /// Overwrite existing results.
     #[arg(long)]
     pub force: bool,
     /// Print one JSON object with every result.
     #[arg(long)]
     pub json: bool,
+    /// No progress bar (it shows only when standard error is a terminal).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// The network settings of `identify` minus the neuron count (a grid axis here).
@@ -81,6 +98,24 @@ pub struct SweepNetArgs {
     /// Simulation-error phase: maximum gradient steps per restart (default protocol).
     #[arg(long)]
     pub sim_steps: Option<usize>,
+}
+
+/// `sweep merge`.
+#[derive(Debug, Clone, clap::Subcommand)]
+pub enum SweepSub {
+    /// Join the folders of `sweep --shard K/N` (all N of them, of one grid) into the
+    /// results.csv and report.md of the unsharded sweep.
+    Merge {
+        /// The shard folders.
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// Folder for results.csv and report.md.
+        #[arg(long)]
+        out: PathBuf,
+        /// Overwrite existing results.
+        #[arg(long)]
+        force: bool,
+    },
 }
 
 /// One grid point.
@@ -205,7 +240,8 @@ pub fn report_md(
     wall: f64,
 ) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "# NARX sweep of {}\n", a.data.display());
+    let data = a.data.as_deref().unwrap_or(std::path::Path::new("-"));
+    let _ = writeln!(s, "# NARX sweep of {}\n", data.display());
     let _ = writeln!(
         s,
         "Protocol `{:?}`, {} epochs, {} settings, base seed {}; wall time {:.1} s on {} threads.\n",
@@ -276,19 +312,50 @@ pub fn report_md(
 
 /// Run `sweep`.
 pub fn run(a: SweepArgs) -> anyhow::Result<()> {
-    let csv_path = a.out.join("results.csv");
-    let md_path = a.out.join("report.md");
-    if a.out.is_dir() {
+    if let Some(SweepSub::Merge { dirs, out, force }) = &a.merge {
+        return merge(dirs, out, *force);
+    }
+    let (Some(data), Some(out)) = (a.data.clone(), a.out.clone()) else {
+        anyhow::bail!("sweep needs --data and --out (or `sweep merge DIR... --out DIR`)");
+    };
+    let csv_path = out.join("results.csv");
+    let md_path = out.join(if a.shard.is_some() {
+        SHARD_FILE
+    } else {
+        "report.md"
+    });
+    if out.is_dir() {
         check_writable(&csv_path, a.force)?;
         check_writable(&md_path, a.force)?;
     }
-    let (train, test) = load_records(&a.data, a.test.as_ref(), &a.inputs, &a.outputs)?;
-    let settings = grid(&a);
-    if settings.is_empty() {
+    let (train, test) = load_records(
+        &data,
+        a.test.as_ref(),
+        &a.inputs,
+        &a.outputs,
+        a.screen.outliers,
+    )?;
+    let all = grid(&a);
+    if all.is_empty() {
         anyhow::bail!(
             "the grid is empty: give at least one value to --lags, --neurons, --lr and --batch"
         );
     }
+    if let Some(sh) = a.shard {
+        if sh.n > all.len() {
+            anyhow::bail!(
+                "--shard {}/{}: the grid has only {} settings; use at most {} parts",
+                sh.k,
+                sh.n,
+                all.len(),
+                all.len()
+            );
+        }
+    }
+    let indices: Vec<usize> = (0..all.len())
+        .filter(|&i| a.shard.is_none_or(|sh| sh.holds(i)))
+        .collect();
+    let settings: Vec<Setting> = indices.iter().map(|&i| all[i]).collect();
     for s in &settings {
         config(&a, s, train.input_names(), train.output_names())
             .check()
@@ -301,9 +368,8 @@ pub fn run(a: SweepArgs) -> anyhow::Result<()> {
     }
     let outputs = train.output_names();
     let total = settings.len();
-    let done = AtomicUsize::new(0);
     let t0 = std::time::Instant::now();
-    eprint!("sweep: 0/{total} settings");
+    let progress = super::progress::Progress::bar(total as u64, "settings", a.quiet);
     let results: Vec<SettingResult> = settings
         .par_iter()
         .map(|s| {
@@ -314,11 +380,7 @@ pub fn run(a: SweepArgs) -> anyhow::Result<()> {
                 .and_then(|m| m.evaluate(&train, &test))
                 .map_err(|e| e.to_string());
             let train_seconds = t.elapsed().as_secs_f64();
-            let k = done.fetch_add(1, Ordering::SeqCst) + 1;
-            eprint!(
-                "\rsweep: {k}/{total} settings, {:.0} s",
-                t0.elapsed().as_secs_f64()
-            );
+            progress.inc();
             SettingResult {
                 setting: *s,
                 evaluation,
@@ -327,11 +389,13 @@ pub fn run(a: SweepArgs) -> anyhow::Result<()> {
         })
         .collect();
     let wall = t0.elapsed().as_secs_f64();
-    eprintln!();
+    drop(progress);
     let csv = results_csv(&results, a.net.epochs, &outputs);
-    let md = report_md(&a, &results, &outputs, wall);
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("cannot create {}", a.out.display()))?;
+    let md = match a.shard {
+        None => report_md(&a, &results, &outputs, wall),
+        Some(sh) => shard_json(&a, sh, all.len(), &indices, &results, &outputs, wall)?,
+    };
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let mut g = OutputGuard::new(a.force);
     g.stage(&csv_path, csv.as_bytes())?;
     g.stage(&md_path, md.as_bytes())?;
@@ -364,5 +428,228 @@ pub fn run(a: SweepArgs) -> anyhow::Result<()> {
             md_path.display()
         );
     }
+    Ok(())
+}
+
+/// The file a `sweep --shard` part writes beside its results.csv.
+pub const SHARD_FILE: &str = "shard.json";
+const SHARD_FORMAT: &str = "hystbench-sweep-shard";
+
+/// The sweep a part belongs to: its arguments without the part, the folder and the switches
+/// that change no result.
+fn sweep_key(a: &SweepArgs) -> String {
+    let mut k = a.clone();
+    (k.merge, k.out, k.shard, k.force, k.json, k.quiet) = (None, None, None, false, false, false);
+    format!("{k:?}")
+}
+
+/// FNV-1a of the record files: the parts of one sweep read the same data.
+fn data_fingerprint(a: &SweepArgs) -> anyhow::Result<String> {
+    let mut h = 0xcbf29ce484222325u64;
+    for p in a.data.iter().chain(a.test.iter()) {
+        let bytes = std::fs::read(p).with_context(|| format!("cannot read {}", p.display()))?;
+        for b in bytes {
+            h = (h ^ b as u64).wrapping_mul(0x100000001b3);
+        }
+    }
+    Ok(format!("{h:016x}"))
+}
+
+/// `shard.json`: the part's results in full (every number as computed) and what identifies its
+/// sweep.
+fn shard_json(
+    a: &SweepArgs,
+    sh: Shard,
+    settings: usize,
+    indices: &[usize],
+    results: &[SettingResult],
+    outputs: &[String],
+    wall: f64,
+) -> anyhow::Result<String> {
+    let rows: Vec<serde_json::Value> = indices
+        .iter()
+        .zip(results)
+        .map(|(i, r)| {
+            serde_json::json!({
+                "index": i, "lags": r.setting.lags, "neurons": r.setting.neurons,
+                "lr": r.setting.lr, "batch": r.setting.batch, "seed": r.setting.seed,
+                "evaluation": r.evaluation.as_ref().ok(), "error": r.evaluation.as_ref().err(),
+                "train_seconds": r.train_seconds,
+            })
+        })
+        .collect();
+    Ok(serde_json::to_string_pretty(&serde_json::json!({
+        "format": SHARD_FORMAT,
+        "shard": sh.k,
+        "of": sh.n,
+        "settings": settings,
+        "sweep": sweep_key(a),
+        "argv": std::env::args().collect::<Vec<_>>(),
+        "data_fnv1a": data_fingerprint(a)?,
+        "outputs": outputs,
+        "wall_seconds": wall,
+        "results": rows,
+    }))?)
+}
+
+/// One part as read back.
+#[derive(serde::Deserialize)]
+struct ShardFile {
+    format: String,
+    shard: usize,
+    of: usize,
+    settings: usize,
+    sweep: String,
+    argv: Vec<String>,
+    data_fnv1a: String,
+    outputs: Vec<String>,
+    wall_seconds: f64,
+    results: Vec<ShardRow>,
+}
+
+#[derive(serde::Deserialize)]
+struct ShardRow {
+    index: usize,
+    lags: usize,
+    neurons: usize,
+    lr: f64,
+    batch: usize,
+    seed: u64,
+    evaluation: Option<Vec<OutputEvaluation>>,
+    error: Option<String>,
+    train_seconds: f64,
+}
+
+/// `sweep merge`: the parts of one sweep joined into the unsharded results.csv and report.md.
+fn merge(dirs: &[PathBuf], out: &std::path::Path, force: bool) -> anyhow::Result<()> {
+    let mut parts: Vec<(PathBuf, ShardFile)> = Vec::new();
+    for d in dirs {
+        let p = d.join(SHARD_FILE);
+        let text = std::fs::read_to_string(&p).with_context(|| {
+            format!(
+                "{}: no {SHARD_FILE}; give the folders that `sweep --shard K/N --out DIR` wrote",
+                d.display()
+            )
+        })?;
+        let f: ShardFile = hystbench::data::parse_json_file(&p, &text)?;
+        if f.format != SHARD_FORMAT {
+            anyhow::bail!(
+                "{}: `format` is `{}`, not `{SHARD_FORMAT}`",
+                p.display(),
+                f.format
+            );
+        }
+        parts.push((p, f));
+    }
+    let (first_path, first) = &parts[0];
+    for (p, f) in &parts[1..] {
+        let differs = if f.sweep != first.sweep {
+            Some("the sweep's arguments (data, grid, network settings)")
+        } else if f.data_fnv1a != first.data_fnv1a {
+            Some("the record files' contents")
+        } else if f.of != first.of || f.settings != first.settings {
+            Some("the number of parts")
+        } else {
+            None
+        };
+        if let Some(what) = differs {
+            anyhow::bail!(
+                "{} and {} are parts of different sweeps: {what} differ; merge the parts of one `sweep --shard K/N` command",
+                first_path.display(),
+                p.display()
+            );
+        }
+    }
+    let mut seen = vec![None; first.of];
+    for (p, f) in &parts {
+        if f.shard == 0 || f.shard > first.of {
+            anyhow::bail!("{}: part {} of {}", p.display(), f.shard, f.of);
+        }
+        if let Some(other) = seen[f.shard - 1].replace(p.clone()) {
+            anyhow::bail!(
+                "part {}/{} given twice: {} and {}",
+                f.shard,
+                f.of,
+                other.display(),
+                p.display()
+            );
+        }
+    }
+    let missing: Vec<String> = (1..=first.of)
+        .filter(|k| seen[k - 1].is_none())
+        .map(|k| format!("{k}/{}", first.of))
+        .collect();
+    if !missing.is_empty() {
+        anyhow::bail!(
+            "incomplete sweep: part(s) {} missing; run `sweep ... --shard K/N` for them and give every part's folder",
+            missing.join(", ")
+        );
+    }
+    let mut rows: Vec<Option<SettingResult>> = vec![None; first.settings];
+    for (p, f) in &parts {
+        for r in &f.results {
+            let slot = rows
+                .get_mut(r.index)
+                .filter(|s| s.is_none())
+                .ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "{}: setting {} is out of the grid or given twice",
+                        p.display(),
+                        r.index
+                    )
+                })?;
+            *slot = Some(SettingResult {
+                setting: Setting {
+                    lags: r.lags,
+                    neurons: r.neurons,
+                    lr: r.lr,
+                    batch: r.batch,
+                    seed: r.seed,
+                },
+                evaluation: match (&r.evaluation, &r.error) {
+                    (Some(e), _) => Ok(e.clone()),
+                    (None, e) => Err(e.clone().unwrap_or_default()),
+                },
+                train_seconds: r.train_seconds,
+            });
+        }
+    }
+    let results: Vec<SettingResult> = rows
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            r.ok_or_else(|| {
+                anyhow::anyhow!("setting {i} is in no part: a part's shard.json was cut short")
+            })
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let a = match <crate::cli::Cli as clap::Parser>::try_parse_from(&first.argv) {
+        Ok(crate::cli::Cli {
+            command: crate::cli::Command::Sweep(a),
+        }) => a,
+        _ => anyhow::bail!(
+            "{}: `argv` is not a sweep command line",
+            first_path.display()
+        ),
+    };
+    let wall = parts
+        .iter()
+        .map(|(_, f)| f.wall_seconds)
+        .fold(0.0, f64::max);
+    let csv = results_csv(&results, a.net.epochs, &first.outputs);
+    let md = report_md(&a, &results, &first.outputs, wall);
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let (csv_path, md_path) = (out.join("results.csv"), out.join("report.md"));
+    let mut g = OutputGuard::new(force);
+    g.stage(&csv_path, csv.as_bytes())?;
+    g.stage(&md_path, md.as_bytes())?;
+    g.commit()?;
+    eprintln!(
+        "merged {} parts ({} settings): wrote {} and {}",
+        parts.len(),
+        results.len(),
+        csv_path.display(),
+        md_path.display()
+    );
     Ok(())
 }

@@ -35,6 +35,9 @@ pub struct Args {
     /// Replace an existing zoo folder.
     #[arg(long)]
     pub force: bool,
+    /// Print nothing while drawing.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// What to do with an existing zoo.
@@ -75,6 +78,14 @@ pub struct ScoreArgs {
     /// Print nothing while scoring.
     #[arg(long)]
     pub quiet: bool,
+    /// Score only the K-th of N parts of the zoo (members K, K+N, ...) and write
+    /// DIR/score/part-K-of-N.json; `--merge` joins the parts into the report.
+    #[arg(long, value_name = "K/N", conflicts_with = "merge")]
+    pub shard: Option<crate::cli::Shard>,
+    /// Join the parts DIR/score/part-*-of-N.json (all N of them) into the report of the whole
+    /// zoo, as one unsharded `zoo score` writes it.
+    #[arg(long)]
+    pub merge: bool,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -88,6 +99,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 fn make(a: Args) -> anyhow::Result<()> {
     let done = AtomicUsize::new(0);
     let count = a.count;
+    let progress = crate::cli::progress::Progress::bar(count as u64, "members", a.quiet);
     let index = zoo::make(
         &a.out,
         a.count,
@@ -97,15 +109,17 @@ fn make(a: Args) -> anyhow::Result<()> {
         a.force,
         &|e| {
             let k = done.fetch_add(1, Ordering::Relaxed) + 1;
-            eprintln!(
+            progress.line(&format!(
                 "[{k}/{count}] member {:>4}: {:<10} {:>7} samples at {:.3} ms",
                 e.index,
                 e.class.name(),
                 e.samples,
                 e.sampling_period_s * 1e3
-            );
+            ));
+            progress.inc();
         },
     )?;
+    drop(progress);
     let mut per_class = std::collections::BTreeMap::new();
     for m in &index.members {
         *per_class.entry(m.class.name()).or_insert(0) += 1;
@@ -122,11 +136,127 @@ fn make(a: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A part of a zoo's score, as `zoo score --shard K/N` writes it.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct ScorePart {
+    format: String,
+    shard: usize,
+    of: usize,
+    seed: u64,
+    members: usize,
+    records: Vec<zoo::RecordScore>,
+}
+
+const PART_FORMAT: &str = "hystbench-zoo-score-part";
+
+/// The parts of `dir`'s score joined: every one of N once, of this zoo, every member scored.
+fn merged(dir: &std::path::Path, index: &zoo::ZooIndex) -> anyhow::Result<zoo::ZooScore> {
+    let folder = dir.join("score");
+    let mut parts: Vec<(PathBuf, ScorePart)> = Vec::new();
+    let mut names: Vec<PathBuf> = std::fs::read_dir(&folder)
+        .with_context(|| {
+            format!(
+                "{}: no parts to merge (run `zoo score DIR --shard K/N` first)",
+                folder.display()
+            )
+        })?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with("part-"))
+        })
+        .collect();
+    names.sort();
+    for p in names {
+        let text = std::fs::read_to_string(&p)?;
+        let part: ScorePart = hystbench::data::parse_json_file(&p, &text)?;
+        if part.format != PART_FORMAT
+            || part.seed != index.seed
+            || part.members != index.members.len()
+        {
+            anyhow::bail!(
+                "{}: a part of another zoo (seed {}, {} members; this zoo: seed {}, {} members); remove it",
+                p.display(),
+                part.seed,
+                part.members,
+                index.seed,
+                index.members.len()
+            );
+        }
+        parts.push((p, part));
+    }
+    let Some(of) = parts.first().map(|(_, p)| p.of) else {
+        anyhow::bail!("{}: no part-K-of-N.json to merge", folder.display());
+    };
+    let mut seen = vec![false; of];
+    for (p, part) in &parts {
+        if part.of != of || part.shard == 0 || part.shard > of {
+            anyhow::bail!(
+                "{}: part {}/{} beside parts of {of}: the zoo was split two ways; remove the parts of one",
+                p.display(),
+                part.shard,
+                part.of
+            );
+        }
+        if std::mem::replace(&mut seen[part.shard - 1], true) {
+            anyhow::bail!("{}: part {}/{of} is there twice", p.display(), part.shard);
+        }
+    }
+    let missing: Vec<String> = (1..=of)
+        .filter(|k| !seen[k - 1])
+        .map(|k| format!("{k}/{of}"))
+        .collect();
+    if !missing.is_empty() {
+        anyhow::bail!(
+            "incomplete score: part(s) {} missing in {}; run `zoo score DIR --shard K/N` for them",
+            missing.join(", "),
+            folder.display()
+        );
+    }
+    let mut by_index: std::collections::BTreeMap<usize, zoo::RecordScore> = Default::default();
+    for (_, part) in parts {
+        for r in part.records {
+            by_index.insert(r.index, r);
+        }
+    }
+    let records: Vec<zoo::RecordScore> = index
+        .members
+        .iter()
+        .map(|m| {
+            by_index.remove(&m.index).ok_or_else(|| {
+                anyhow::anyhow!("member {} is in no part: a part was cut short", m.index)
+            })
+        })
+        .collect::<anyhow::Result<_>>()?;
+    Ok(zoo::ZooScore::of(index.seed, records))
+}
+
 fn score(a: ScoreArgs) -> anyhow::Result<()> {
-    let n = zoo::ZooIndex::read(&a.dir)?.members.len();
+    let index = zoo::ZooIndex::read(&a.dir)?;
+    let out = a.dir.join("score");
+    if a.merge {
+        let result = merged(&a.dir, &index)?;
+        hystbench::plot::zoo_figure(result.curves(), &out.join("r2.png"), true)?;
+        let md = result.to_markdown() + "\n![free-run test error per class](r2.png)\n";
+        return report(&out, &result.to_csv(), &md, a.json.then_some(&result));
+    }
+    let n = match a.shard {
+        Some(sh) if sh.n > index.members.len() => anyhow::bail!(
+            "--shard {}/{}: the zoo has only {} members; use at most {} parts",
+            sh.k,
+            sh.n,
+            index.members.len(),
+            index.members.len()
+        ),
+        Some(sh) => (0..index.members.len()).filter(|&i| sh.holds(i)).count(),
+        None => index.members.len(),
+    };
     let mut k = 0;
-    let result = zoo::score(&a.dir, &mut |r| {
+    let progress = crate::cli::progress::Progress::bar(n as u64, "members", a.quiet);
+    let take = |i: usize| a.shard.is_none_or(|sh| sh.holds(i));
+    let records = zoo::score_members(&a.dir, &take, &mut |r| {
         k += 1;
+        progress.inc();
         if !a.quiet {
             let cells: Vec<String> = r
                 .outputs
@@ -140,18 +270,38 @@ fn score(a: ScoreArgs) -> anyhow::Result<()> {
                     )
                 })
                 .collect();
-            eprintln!(
+            progress.line(&format!(
                 "[{k}/{n}] member {:>4} {:<10} {:>7} samples: {} in {:.1} s",
                 r.index,
                 r.class.name(),
                 r.samples,
                 cells.join(", "),
                 r.seconds
-            );
+            ));
         }
     })?;
-    let out = a.dir.join("score");
+    drop(progress);
     std::fs::create_dir_all(&out).with_context(|| format!("cannot make {}", out.display()))?;
+    if let Some(sh) = a.shard {
+        let part = ScorePart {
+            format: PART_FORMAT.into(),
+            shard: sh.k,
+            of: sh.n,
+            seed: index.seed,
+            members: index.members.len(),
+            records,
+        };
+        let path = out.join(format!("part-{}-of-{}.json", sh.k, sh.n));
+        write_atomic(&path, serde_json::to_string_pretty(&part)?.as_bytes(), true)?;
+        eprintln!(
+            "wrote {} ({} members); join the parts with `hystbench zoo score {} --merge`",
+            path.display(),
+            part.records.len(),
+            a.dir.display()
+        );
+        return Ok(());
+    }
+    let result = zoo::ZooScore::of(index.seed, records);
     hystbench::plot::zoo_figure(result.curves(), &out.join("r2.png"), true)?;
     let md = result.to_markdown() + "\n![free-run test error per class](r2.png)\n";
     report(&out, &result.to_csv(), &md, a.json.then_some(&result))
@@ -190,8 +340,10 @@ fn hidden_loop(a: LoopArgs) -> anyhow::Result<()> {
         max_samples: a.max_samples,
         ..Default::default()
     };
+    let progress = crate::cli::progress::Progress::bar(n as u64, "members", a.quiet);
     let result = zoo::score_loop(&a.dir, &opts, &|m| {
         let k = done.fetch_add(1, Ordering::Relaxed) + 1;
+        progress.inc();
         if a.quiet {
             return;
         }
@@ -207,7 +359,7 @@ fn hidden_loop(a: LoopArgs) -> anyhow::Result<()> {
                 )
             })
             .collect();
-        eprintln!(
+        progress.line(&format!(
             "[{k}/{n}] member {:>4} {:<10} {}: complete {}; {} in {:.1} s",
             m.index,
             m.class.name(),
@@ -219,8 +371,9 @@ fn hidden_loop(a: LoopArgs) -> anyhow::Result<()> {
             },
             cases.join(", "),
             m.seconds
-        );
+        ));
     })?;
+    drop(progress);
     report(
         &a.dir.join("loop"),
         &result.to_csv(),

@@ -24,7 +24,7 @@ pub mod score;
 
 pub use draw::{member, Class, Member};
 pub use hidden::{score_loop, LoopOptions, LoopScore};
-pub use score::{score, ZooScore};
+pub use score::{score, score_members, RecordScore, ZooScore};
 
 use crate::data::{format_csv, JsonFileError};
 use crate::plant::PlantError;
@@ -41,12 +41,17 @@ pub const VERSION: u32 = 1;
 /// The index file's name in a zoo folder.
 pub const INDEX: &str = "zoo.json";
 
+/// The most members of one zoo.
+pub const MAX_MEMBERS: usize = 100_000;
+
 /// What can go wrong making or scoring a zoo.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ZooError {
     #[error("--count must be at least 1 (got 0)")]
     NoMembers,
+    #[error("--count {count}: at most {MAX_MEMBERS} members in one zoo; make several zoos with different --seed")]
+    TooMany { count: usize },
     #[error("--extra {effect}: the zoo draws only effects sized by an output's range on top of its plants ({allowed})")]
     Extra { effect: String, allowed: String },
     #[error("{dir}: exists and is not a zoo folder (no {INDEX}); choose another folder")]
@@ -301,6 +306,9 @@ pub fn make(
 ) -> Result<ZooIndex, ZooError> {
     if count == 0 {
         return Err(ZooError::NoMembers);
+    }
+    if count > MAX_MEMBERS {
+        return Err(ZooError::TooMany { count });
     }
     let drawable = |e: &dyn crate::effect::Effect| {
         let probe: Vec<f64> = (0..100).map(|k| (0.1 * k as f64).sin()).collect();

@@ -9,13 +9,13 @@ use crate::narx::arx::fit_arx;
 use crate::narx::band::coverage;
 use crate::narx::base::BaseUse;
 use crate::narx::NarxConfig;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
 
 /// One output of one record.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct OutputScore {
     pub name: String,
     /// Free-run test R^2 of the default identifier (`None`: diverged, or undefined).
@@ -53,7 +53,7 @@ impl OutputScore {
 }
 
 /// One record.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RecordScore {
     pub index: usize,
     pub class: Class,
@@ -202,22 +202,43 @@ fn score_member(dir: &Path, e: &IndexEntry) -> Result<RecordScore, ZooError> {
 /// Scores every record of the zoo in `dir` (one after another; each fit uses every thread).
 /// `progress` hears each record when it is scored.
 pub fn score(dir: &Path, progress: &mut dyn FnMut(&RecordScore)) -> Result<ZooScore, ZooError> {
+    let seed = ZooIndex::read(dir)?.seed;
+    Ok(ZooScore::of(seed, score_members(dir, &|_| true, progress)?))
+}
+
+/// Scores the members of the zoo in `dir` whose position in its index `take` accepts (a part
+/// of the zoo, for a cluster scheduler's array job); [`ZooScore::of`] joins the parts.
+pub fn score_members(
+    dir: &Path,
+    take: &dyn Fn(usize) -> bool,
+    progress: &mut dyn FnMut(&RecordScore),
+) -> Result<Vec<RecordScore>, ZooError> {
     let index = ZooIndex::read(dir)?;
     let mut records = Vec::new();
-    for e in &index.members {
+    for (i, e) in index.members.iter().enumerate() {
+        if !take(i) {
+            continue;
+        }
         let r = score_member(dir, e)?;
         progress(&r);
         records.push(r);
     }
-    let classes = Class::ALL
-        .iter()
-        .filter_map(|&c| summarise(c, &records))
-        .collect();
-    Ok(ZooScore {
-        seed: index.seed,
-        records,
-        classes,
-    })
+    Ok(records)
+}
+
+impl ZooScore {
+    /// The summary of scored records (in the zoo's order) of the zoo of `seed`.
+    pub fn of(seed: u64, records: Vec<RecordScore>) -> ZooScore {
+        let classes = Class::ALL
+            .iter()
+            .filter_map(|&c| summarise(c, &records))
+            .collect();
+        ZooScore {
+            seed,
+            records,
+            classes,
+        }
+    }
 }
 
 /// The `q` quantile (nearest rank, from below) of sorted values.
