@@ -186,6 +186,42 @@ impl Shard {
     pub fn holds(&self, i: usize) -> bool {
         i % self.n == self.k - 1
     }
+
+    /// Check that `parts` (each: the file it was read from, the part it is) are every one of
+    /// `of` parts once; `hint` says how to make a missing one.
+    pub fn check_parts(
+        parts: &[(&std::path::Path, Shard)],
+        of: usize,
+        hint: &str,
+    ) -> anyhow::Result<()> {
+        let mut seen: Vec<Option<&std::path::Path>> = vec![None; of];
+        for &(p, sh) in parts {
+            if sh.n != of || sh.k == 0 || sh.k > of {
+                anyhow::bail!(
+                    "{}: part {}/{} beside parts of {of}: the job was split two ways; keep the parts of one",
+                    p.display(),
+                    sh.k,
+                    sh.n
+                );
+            }
+            if let Some(other) = seen[sh.k - 1].replace(p) {
+                anyhow::bail!(
+                    "part {}/{of} given twice: {} and {}",
+                    sh.k,
+                    other.display(),
+                    p.display()
+                );
+            }
+        }
+        let missing: Vec<String> = (1..=of)
+            .filter(|k| seen[k - 1].is_none())
+            .map(|k| format!("{k}/{of}"))
+            .collect();
+        if !missing.is_empty() {
+            anyhow::bail!("incomplete: part(s) {} missing; {hint}", missing.join(", "));
+        }
+        Ok(())
+    }
 }
 
 /// Print to standard output, ending with a newline; a closed pipe (`| head`) is not an error.

@@ -560,31 +560,23 @@ fn merge(dirs: &[PathBuf], out: &std::path::Path, force: bool) -> anyhow::Result
             );
         }
     }
-    let mut seen = vec![None; first.of];
-    for (p, f) in &parts {
-        if f.shard == 0 || f.shard > first.of {
-            anyhow::bail!("{}: part {} of {}", p.display(), f.shard, f.of);
-        }
-        if let Some(other) = seen[f.shard - 1].replace(p.clone()) {
-            anyhow::bail!(
-                "part {}/{} given twice: {} and {}",
-                f.shard,
-                f.of,
-                other.display(),
-                p.display()
-            );
-        }
-    }
-    let missing: Vec<String> = (1..=first.of)
-        .filter(|k| seen[k - 1].is_none())
-        .map(|k| format!("{k}/{}", first.of))
+    let found: Vec<(&std::path::Path, Shard)> = parts
+        .iter()
+        .map(|(p, f)| {
+            (
+                p.as_path(),
+                Shard {
+                    k: f.shard,
+                    n: f.of,
+                },
+            )
+        })
         .collect();
-    if !missing.is_empty() {
-        anyhow::bail!(
-            "incomplete sweep: part(s) {} missing; run `sweep ... --shard K/N` for them and give every part's folder",
-            missing.join(", ")
-        );
-    }
+    Shard::check_parts(
+        &found,
+        first.of,
+        "run `sweep ... --shard K/N` for them and give every part's folder",
+    )?;
     let mut rows: Vec<Option<SettingResult>> = vec![None; first.settings];
     for (p, f) in &parts {
         for r in &f.results {

@@ -188,31 +188,24 @@ fn merged(dir: &std::path::Path, index: &zoo::ZooIndex) -> anyhow::Result<zoo::Z
     let Some(of) = parts.first().map(|(_, p)| p.of) else {
         anyhow::bail!("{}: no part-K-of-N.json to merge", folder.display());
     };
-    let mut seen = vec![false; of];
-    for (p, part) in &parts {
-        if part.of != of || part.shard == 0 || part.shard > of {
-            anyhow::bail!(
-                "{}: part {}/{} beside parts of {of}: the zoo was split two ways; remove the parts of one",
-                p.display(),
-                part.shard,
-                part.of
-            );
-        }
-        if std::mem::replace(&mut seen[part.shard - 1], true) {
-            anyhow::bail!("{}: part {}/{of} is there twice", p.display(), part.shard);
-        }
-    }
-    let missing: Vec<String> = (1..=of)
-        .filter(|k| !seen[k - 1])
-        .map(|k| format!("{k}/{of}"))
+    let found: Vec<(&std::path::Path, crate::cli::Shard)> = parts
+        .iter()
+        .map(|(p, part)| {
+            let sh = crate::cli::Shard {
+                k: part.shard,
+                n: part.of,
+            };
+            (p.as_path(), sh)
+        })
         .collect();
-    if !missing.is_empty() {
-        anyhow::bail!(
-            "incomplete score: part(s) {} missing in {}; run `zoo score DIR --shard K/N` for them",
-            missing.join(", "),
+    crate::cli::Shard::check_parts(
+        &found,
+        of,
+        &format!(
+            "run `zoo score DIR --shard K/N` for them (into {})",
             folder.display()
-        );
-    }
+        ),
+    )?;
     let mut by_index: std::collections::BTreeMap<usize, zoo::RecordScore> = Default::default();
     for (_, part) in parts {
         for r in part.records {
