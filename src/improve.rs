@@ -155,13 +155,18 @@ pub fn start_config(path: &Path) -> Result<GreyBoxConfig, ImproveError> {
         return Ok(m.config());
     }
     match Plant::from_file(path) {
-        Ok(p) => Ok(GreyBoxConfig::from_effect_list(&effect_list(
-            &plant_effects(&p),
-        ))?),
+        Ok(p) => plant_config(&p),
         Err(_) => Err(ImproveError::NotAGreyBox {
             path: path.to_path_buf(),
         }),
     }
+}
+
+/// The grey-box configuration with a plant's effects (its structure, free parameters).
+pub fn plant_config(plant: &Plant) -> Result<GreyBoxConfig, ImproveError> {
+    Ok(GreyBoxConfig::from_effect_list(&effect_list(
+        &plant_effects(plant),
+    ))?)
 }
 
 /// A model's prediction of a record and its mean scores over the outputs.

@@ -42,3 +42,16 @@ pub mod scenario;
 pub mod signal;
 pub mod simulator;
 pub mod zoo;
+
+/// An error in words as the command line prints it: the whole chain of causes, without
+/// repeating a cause that a message already quotes (the Python front raises the same words).
+pub fn error_message(e: &anyhow::Error) -> String {
+    let mut msg = e.to_string();
+    for cause in e.chain().skip(1) {
+        let c = cause.to_string();
+        if !msg.contains(&c) {
+            msg = format!("{msg}: {c}");
+        }
+    }
+    msg
+}

@@ -9,14 +9,7 @@ fn main() -> std::process::ExitCode {
     match cli::run(cli) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            // the whole chain, without repeating a cause that a message already quotes
-            let mut msg = e.to_string();
-            for cause in e.chain().skip(1) {
-                let c = cause.to_string();
-                if !msg.contains(&c) {
-                    msg = format!("{msg}: {c}");
-                }
-            }
+            let msg = hystbench::error_message(&e);
             eprintln!("error: {msg}");
             std::process::ExitCode::FAILURE
         }

@@ -349,22 +349,83 @@ pub fn load_model(path: &Path) -> Result<Box<dyn Model>, ModelError> {
 
 /// [`load_model`] of a file's text (`path` labels the errors).
 pub fn parse_model(path: &Path, text: &str) -> Result<Box<dyn Model>, ModelError> {
-    match crate::data::FileHeader::read(path, text)?.format_str() {
-        None => Ok(Box::new(PlantSpec::parse(path, text)?.check(path)?)),
-        Some(crate::graybox::FORMAT) => {
-            Ok(Box::new(crate::graybox::FittedGreyBox::parse(path, text)?))
+    Ok(LoadedModel::parse(path, text)?.into_model())
+}
+
+/// A model read from a file, of the kind its `format` says.
+pub enum LoadedModel {
+    Plant(Plant),
+    GreyBox(crate::graybox::FittedGreyBox),
+    Narx(crate::narx::FittedNarx),
+}
+
+impl LoadedModel {
+    /// Read a model file: a plant file, or a model file with a `format` field.
+    pub fn load(path: &Path) -> Result<LoadedModel, ModelError> {
+        Self::parse(path, &crate::data::read_json_text(path)?)
+    }
+
+    /// [`LoadedModel::load`] of a file's text (`path` labels the errors).
+    pub fn parse(path: &Path, text: &str) -> Result<LoadedModel, ModelError> {
+        match crate::data::FileHeader::read(path, text)?.format_str() {
+            None => Ok(LoadedModel::Plant(
+                PlantSpec::parse(path, text)?.check(path)?,
+            )),
+            Some(crate::graybox::FORMAT) => Ok(LoadedModel::GreyBox(
+                crate::graybox::FittedGreyBox::parse(path, text)?,
+            )),
+            Some(crate::narx::model::FORMAT) => Ok(LoadedModel::Narx(
+                crate::narx::FittedNarx::from_json(path, text)?,
+            )),
+            Some(other) => Err(ModelError::UnknownFormat {
+                path: path.to_path_buf(),
+                found: other.to_string(),
+                known: format!(
+                    "{}, {}, or a plant file (no `format`)",
+                    crate::graybox::FORMAT,
+                    crate::narx::model::FORMAT
+                ),
+            }),
         }
-        Some(crate::narx::model::FORMAT) => {
-            Ok(Box::new(crate::narx::FittedNarx::from_json(path, text)?))
+    }
+
+    /// The model behind the common trait.
+    pub fn as_model(&self) -> &dyn Model {
+        match self {
+            LoadedModel::Plant(m) => m,
+            LoadedModel::GreyBox(m) => m,
+            LoadedModel::Narx(m) => m,
         }
-        Some(other) => Err(ModelError::UnknownFormat {
-            path: path.to_path_buf(),
-            found: other.to_string(),
-            known: format!(
-                "{}, {}, or a plant file (no `format`)",
-                crate::graybox::FORMAT,
-                crate::narx::model::FORMAT
-            ),
-        }),
+    }
+
+    /// The model boxed behind the common trait.
+    pub fn into_model(self) -> Box<dyn Model> {
+        match self {
+            LoadedModel::Plant(m) => Box::new(m),
+            LoadedModel::GreyBox(m) => Box::new(m),
+            LoadedModel::Narx(m) => Box::new(m),
+        }
+    }
+
+    /// The grey-box structure that refits it (a grey-box model's own, a plant's effects);
+    /// `None` for a NARX model.
+    pub fn structure(&self) -> Option<crate::graybox::GreyBoxConfig> {
+        match self {
+            LoadedModel::Plant(p) => crate::improve::plant_config(p).ok(),
+            LoadedModel::GreyBox(m) => Some(m.config()),
+            LoadedModel::Narx(_) => None,
+        }
+    }
+
+    /// The text of its file (what `load` reads back).
+    pub fn to_json(&self) -> Result<String, ModelError> {
+        match self {
+            // a checked spec holds finite numbers and string keys: it always serialises
+            LoadedModel::Plant(p) => {
+                Ok(serde_json::to_string_pretty(&p.spec).unwrap_or_default() + "\n")
+            }
+            LoadedModel::GreyBox(m) => Ok(m.to_json()?),
+            LoadedModel::Narx(m) => Ok(m.to_json()),
+        }
     }
 }

@@ -2,7 +2,7 @@
 
 use hystbench::data::inspect::Outliers;
 use hystbench::data::IoRecord;
-use hystbench::diagnose::compare::{compare, OutputComparison};
+use hystbench::diagnose::compare::{compare_model, BandCoverage, OutputComparison};
 use hystbench::diagnose::unit_of;
 use hystbench::model::{load_model, Model};
 use std::fmt::Write as _;
@@ -46,38 +46,6 @@ pub fn predict_record(
 /// Predict a selected record, refusing a prediction that left the finite range.
 pub fn predict_io(model: &dyn Model, io: &IoRecord) -> anyhow::Result<Vec<Vec<f64>>> {
     Ok(hystbench::model::predict_finite(model, io)?)
-}
-
-/// How one output's prediction band held the measurement.
-#[derive(Debug, serde::Serialize)]
-pub struct BandCoverage {
-    pub output: String,
-    pub level: f64,
-    /// Share of the samples inside prediction +- half-width.
-    pub coverage: f64,
-    pub mean_half_width: f64,
-}
-
-/// The coverage of each output's band (outputs without a band are left out).
-pub fn band_coverage(
-    io: &IoRecord,
-    pred: &[Vec<f64>],
-    bands: &[Option<Vec<f64>>],
-) -> Vec<BandCoverage> {
-    io.outputs
-        .iter()
-        .zip(pred)
-        .zip(bands)
-        .filter_map(|((y, p), h)| {
-            let h = h.as_ref()?;
-            Some(BandCoverage {
-                output: y.name.clone(),
-                level: hystbench::narx::band::BAND_LEVEL,
-                coverage: hystbench::narx::band::coverage(&y.values, p, h, 0)?,
-                mean_half_width: h.iter().sum::<f64>() / h.len().max(1) as f64,
-            })
-        })
-        .collect()
 }
 
 /// The comparison as Markdown.
@@ -179,14 +147,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         crate::cli::demo::prepare_report_folder(dir, a.force)?;
     }
     let (io, pred) = predict_record(&a.data, a.screen.outliers, model.as_ref())?;
-    let outside = model.outside(&io);
-    let cmp = compare(&io, &pred);
-    let bands = model.band(&io)?;
-    let coverage = band_coverage(&io, &pred, &bands);
-    let md = markdown(model.as_ref(), &a.data, &cmp, &coverage);
+    let report = compare_model(model.as_ref(), &io, &pred)?;
+    let bands = &report.half_widths;
+    let md = markdown(model.as_ref(), &a.data, &report.outputs, &report.bands);
     if let Some(dir) = &a.report {
         let (mut names, mut cols) = io.to_columns();
-        for ((s, p), h) in io.outputs.iter().zip(&pred).zip(&bands) {
+        for ((s, p), h) in io.outputs.iter().zip(&pred).zip(bands) {
             names.push(format!("{}_hat", s.name));
             cols.push(p.clone());
             if let Some(h) = h {
@@ -196,7 +162,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             }
         }
         hystbench::data::write_csv_atomic(&dir.join("prediction.csv"), &names, &cols, true)?;
-        let figures = write_figures(dir, &io, &pred, &bands)?;
+        let figures = write_figures(dir, &io, &pred, bands)?;
         let mut report = format!("{md}## Figures\n\n");
         for f in figures {
             report += &format!("![{f}]({f})\n\n");
@@ -205,9 +171,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         eprintln!("report: {}", dir.join("report.md").display());
     }
     if a.json {
-        crate::cli::print(&serde_json::to_string(
-            &serde_json::json!({ "outputs": cmp, "bands": coverage, "extrapolation": outside }),
-        )?);
+        crate::cli::print(&serde_json::to_string(&report)?);
     } else {
         crate::cli::print(&md);
     }

@@ -1,7 +1,7 @@
 //! `hystbench diagnose`: which physical effect does the model miss?
 
 use crate::cli::compare::predict_record;
-use hystbench::diagnose::{diagnose, diagnose_model, DiagnoseOptions, Diagnosis};
+use hystbench::diagnose::{diagnose_any, DiagnoseOptions, Diagnosis};
 use hystbench::model::load_model;
 use std::path::PathBuf;
 
@@ -90,10 +90,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         opts.refit = None;
     }
     // a grey-box model or a plant file: its structure can be refitted
-    let d = match hystbench::improve::start_config(&a.model) {
-        Ok(config) if opts.refit.is_some() => diagnose_model(&io, &pred, &config, &opts),
-        _ => diagnose(&io, &pred, &model.effects(), &opts),
-    };
+    let config = hystbench::improve::start_config(&a.model).ok();
+    let d = diagnose_any(&io, &pred, &model.effects(), config.as_ref(), &opts);
     if let Some(f) = &a.figure {
         let label = a
             .data

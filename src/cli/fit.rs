@@ -3,8 +3,7 @@
 
 use anyhow::Context;
 use hystbench::data::{check_writable, IoRecord};
-use hystbench::graybox::{FittedGreyBox, GreyBoxConfig};
-use serde_json::{json, Map, Value};
+use hystbench::graybox::GreyBoxConfig;
 use std::path::PathBuf;
 
 /// Fit a grey-box model (the chain of the library's effects, free parameters) to a record.
@@ -51,41 +50,9 @@ pub struct Args {
     pub quiet: bool,
 }
 
-/// The `--json` summary: mean RMSE and R^2 over outputs, and each output for several.
-pub fn summary_json(model: &FittedGreyBox) -> Value {
-    let mut v = json!({
-        "effects": model.effects().iter().map(|e| e.as_str()).collect::<Vec<_>>(),
-        "rmse": model.fit.rmse,
-        "r2": model.fit.r2,
-    });
-    if model.fit.outputs.len() > 1 {
-        let mut outs = Map::new();
-        for o in &model.fit.outputs {
-            outs.insert(o.name.clone(), json!({"rmse": o.rmse, "r2": o.r2}));
-        }
-        v["outputs"] = Value::Object(outs);
-    }
-    v
-}
-
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let mut cfg = GreyBoxConfig::from_effect_list(&a.effects)?;
-    if let Some(plays) = a.plays {
-        if plays == 0 {
-            anyhow::bail!("--plays 0: give at least one play operator");
-        }
-        cfg.options.plays = plays;
-        cfg.options.adapt_plays = false;
-    }
-    if let Some(f) = a.train_fraction {
-        cfg.options.train_fraction = f;
-    }
-    if !(cfg.options.train_fraction > 0.0 && cfg.options.train_fraction <= 1.0) {
-        anyhow::bail!(
-            "--train-fraction {}: must be a number in (0, 1]",
-            cfg.options.train_fraction
-        );
-    }
+    let cfg =
+        GreyBoxConfig::from_effect_list(&a.effects)?.with_fit_options(a.plays, a.train_fraction)?;
     check_writable(&a.out, a.force)?;
     let io = crate::cli::read_screened(&a.data, a.screen.outliers, |r| {
         Ok(IoRecord::from_record(
@@ -121,7 +88,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     }
     if a.json {
-        println!("{}", serde_json::to_string(&summary_json(&model))?);
+        println!("{}", serde_json::to_string(&model.summary_json())?);
     } else {
         let r2 =
             |r: Option<f64>| r.map_or("n/a (constant output)".to_string(), |v| format!("{v:.6}"));

@@ -5,10 +5,7 @@ use anyhow::Context;
 use clap::Args;
 use hystbench::data::inspect::Outliers;
 use hystbench::data::{check_writable, write_atomic, IoRecord};
-use hystbench::effect::EffectName;
-use hystbench::effect::FeatureSpec;
-use hystbench::narx::model::OutputEvaluation;
-use hystbench::narx::{FittedNarx, Interaction, Lags, NarxConfig, OptimizerKind, Protocol};
+use hystbench::narx::{FittedNarx, Interaction, NarxConfig, NarxSettings, OptimizerKind, Protocol};
 use std::path::PathBuf;
 
 /// Identify a record with a NARX neural network (one MISO model per output).
@@ -130,61 +127,33 @@ pub struct NetArgs {
 }
 
 impl NetArgs {
-    /// A configuration for given signals, lags, learning rate and batch.
-    pub fn config(
-        &self,
-        inputs: Vec<String>,
-        outputs: Vec<String>,
-        lags: usize,
-        lr: f64,
-        batch: usize,
-    ) -> NarxConfig {
-        let mut c = NarxConfig::new(inputs, outputs);
-        c.lags = Lags {
-            output: self.output_lags.unwrap_or(lags),
-            input: self.input_lags.unwrap_or(lags),
+    /// The library's settings with these options and the given lags, learning rate and batch.
+    pub fn settings(&self, lags: usize, lr: f64, batch: usize) -> NarxSettings {
+        NarxSettings {
+            lags,
+            output_lags: self.output_lags,
+            input_lags: self.input_lags,
             delay: self.delay,
-        };
-        c.neurons = self.neurons;
-        c.layers = self.layers;
-        c.interaction = self.interaction.unwrap_or(match self.protocol {
-            Protocol::Default => Interaction::Additive,
-            Protocol::Study => Interaction::Full,
-        });
-        c.protocol = self.protocol;
-        c.optimizer = self.optimizer.unwrap_or(match self.protocol {
-            Protocol::Default => OptimizerKind::Adam,
-            Protocol::Study => OptimizerKind::Rmsprop,
-        });
-        c.lr = lr;
-        c.batch = batch;
-        c.epochs = self.epochs;
-        c.seed = self.seed;
-        if let Some(r) = self.restarts {
-            c.robust.restarts = Some(r);
+            neurons: self.neurons,
+            layers: self.layers,
+            interaction: self.interaction,
+            optimizer: self.optimizer,
+            lr,
+            batch,
+            epochs: self.epochs,
+            seed: self.seed,
+            protocol: self.protocol,
+            restarts: self.restarts,
+            sim_steps: self.sim_steps,
+            sim_lr: self.sim_lr,
+            window: self.window,
+            sim_patience: self.sim_patience,
+            weight_decay: self.weight_decay,
+            validation_fraction: self.validation_fraction,
+            ensemble: self.ensemble,
+            features: Vec::new(),
+            greybox: true,
         }
-        if let Some(v) = self.sim_steps {
-            c.robust.sim_steps = v;
-        }
-        if let Some(v) = self.sim_lr {
-            c.robust.sim_lr = v;
-        }
-        if let Some(v) = self.window {
-            c.robust.window = v;
-        }
-        if let Some(v) = self.validation_fraction {
-            c.robust.validation_fraction = v;
-        }
-        if let Some(v) = self.weight_decay {
-            c.robust.weight_decay = v;
-        }
-        if let Some(v) = self.sim_patience {
-            c.robust.sim_patience = v;
-        }
-        if let Some(v) = self.ensemble {
-            c.robust.ensemble = Some(v);
-        }
-        c
     }
 }
 
@@ -219,29 +188,6 @@ pub fn load_records(
     }
 }
 
-/// Scores as the JSON object of one output.
-pub fn evaluation_json(e: &OutputEvaluation) -> serde_json::Value {
-    let mut m = serde_json::Map::new();
-    m.insert("r2_osa_train".into(), e.r2_osa_train.into());
-    m.insert("r2_fr_train".into(), e.r2_fr_train.into());
-    m.insert("r2_osa_test".into(), e.r2_osa_test.into());
-    m.insert("r2_fr_test".into(), e.r2_fr_test.into());
-    m.insert("rmse_fr_test".into(), e.rmse_fr_test.into());
-    if let Some(k) = e.diverged_at_test {
-        m.insert("diverged_at".into(), k.into());
-    }
-    if let Some(k) = e.diverged_at_train {
-        m.insert("diverged_at_train".into(), k.into());
-    }
-    if !e.diverged_members_test.is_empty() {
-        m.insert(
-            "ensemble_members_diverged_test".into(),
-            e.diverged_members_test.clone().into(),
-        );
-    }
-    serde_json::Value::Object(m)
-}
-
 /// A score cell for tables.
 pub fn cell(v: Option<f64>, diverged: Option<usize>) -> String {
     match (v, diverged) {
@@ -249,22 +195,6 @@ pub fn cell(v: Option<f64>, diverged: Option<usize>) -> String {
         (Some(x), None) => format!("{x:.5}"),
         (None, None) => "undefined".into(),
     }
-}
-
-/// The feature definitions of the named effects on a training record (in the order named,
-/// duplicates once).
-pub fn feature_specs(names: &[String], train: &IoRecord) -> anyhow::Result<Vec<FeatureSpec>> {
-    let mut effects: Vec<EffectName> = Vec::new();
-    for n in names {
-        if n == "none" || n == "auto" {
-            anyhow::bail!("--features {n} cannot be combined with effect names");
-        }
-        let e: EffectName = n.parse().context("--features")?;
-        if !effects.contains(&e) {
-            effects.push(e);
-        }
-    }
-    hystbench::narx::features_of(&effects, train).map_err(|e| anyhow::anyhow!("--features {e}"))
 }
 
 /// Run `identify`.
@@ -277,27 +207,10 @@ pub fn run(args: IdentifyArgs) -> anyhow::Result<()> {
         &args.outputs,
         args.screen.outliers,
     )?;
-    let cfg = args.net.config(
-        train.input_names(),
-        train.output_names(),
-        args.lags,
-        args.lr,
-        args.batch,
-    );
-    let mut cfg = cfg;
-    let only = |word: &str| args.features.len() == 1 && args.features[0] == word;
-    if only("auto") {
-        cfg.robust.try_features = hystbench::effect::registry::narx_candidates();
-    } else if !args.features.is_empty() {
-        // named features (or `none`) are taken as they are: no selection
-        cfg.robust.try_features.clear();
-        if !only("none") {
-            cfg.features = feature_specs(&args.features, &train)?;
-        }
-    }
-    if args.greybox == "off" {
-        cfg.robust.try_greybox = false;
-    }
+    let mut settings = args.net.settings(args.lags, args.lr, args.batch);
+    settings.features = args.features.clone();
+    settings.greybox = args.greybox != "off";
+    let cfg = settings.config(&train).context("--features")?;
     let need = cfg.lags.start() + 2;
     if args.test.is_none() && train.len() < need {
         anyhow::bail!(
@@ -334,29 +247,7 @@ fn run_with(
     let outside = model.outside(&test);
     crate::cli::warn_outside(args.test.as_ref().unwrap_or(&args.data), &outside);
     if args.json {
-        let mut outs = serde_json::Map::new();
-        for e in &eval {
-            outs.insert(e.name.clone(), evaluation_json(e));
-        }
-        let mut v = serde_json::json!({"outputs": outs, "train_seconds": model.train_seconds});
-        if let Some(ds) = &model.decimation_selection {
-            v["decimation"] = serde_json::json!({"chosen": ds.chosen, "tried": ds.tried});
-        }
-        v["extrapolation"] = serde_json::to_value(&outside)?;
-        if let Some(b) = &model.base {
-            v["greybox"] = serde_json::to_value(b)?;
-            if let Some(o) = v["greybox"].as_object_mut() {
-                o.remove("plant");
-            }
-        }
-        if let Some(fs) = &model.feature_selection {
-            v["feature_selection"] = serde_json::json!({
-                "tried": fs.tried,
-                "chosen": fs.chosen,
-                "validation_mse_without": fs.selection_mse_without,
-                "validation_mse_with": fs.selection_mse_with,
-            });
-        }
+        let v = model.report_json(&eval, &outside);
         println!("{v}");
     } else {
         println!(

@@ -130,31 +130,23 @@ pub fn read_screened(
     outliers: Outliers,
     select: impl Fn(&hystbench::data::Record) -> anyhow::Result<hystbench::data::IoRecord>,
 ) -> anyhow::Result<hystbench::data::IoRecord> {
-    let mut rec = read_data(path)?;
-    let io = select(&rec)?;
-    let s = hystbench::data::inspect::screen(
-        &mut rec,
-        &io.input_names(),
-        &io.output_names(),
-        outliers,
-    )?;
+    let (io, s) = hystbench::data::inspect::screened(read_data(path)?, outliers, select)?;
     for f in &s.findings {
         eprintln!("warning: {}: {}", path.display(), f.summary());
     }
-    if s.repaired == 0 {
-        return Ok(io);
+    if s.repaired > 0 {
+        eprintln!(
+            "note: {}: {} outlier(s) repaired (each replaced by the line between its good neighbours), lines {}",
+            path.display(),
+            s.repaired,
+            s.repaired_lines
+                .iter()
+                .map(usize::to_string)
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
     }
-    eprintln!(
-        "note: {}: {} outlier(s) repaired (each replaced by the line between its good neighbours), lines {}",
-        path.display(),
-        s.repaired,
-        s.repaired_lines
-            .iter()
-            .map(usize::to_string)
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
-    select(&rec)
+    Ok(io)
 }
 
 /// The K-th of N parts of a job (1 <= K <= N): the items (a sweep's settings, a zoo's members)

@@ -179,7 +179,7 @@ fn config(a: &SweepArgs, s: &Setting, inputs: Vec<String>, outputs: Vec<String>)
         validation_fraction: None,
         ensemble: None,
     };
-    let mut c = net.config(inputs, outputs, s.lags, s.lr, s.batch);
+    let mut c = net.settings(s.lags, s.lr, s.batch).network(inputs, outputs);
     // the grid studies the plain network at each setting (and keeps the study grid's time): no
     // feature selection, no choice of the model's sampling
     c.robust.try_features.clear();
@@ -407,7 +407,7 @@ pub fn run(a: SweepArgs) -> anyhow::Result<()> {
                 let mut outs = serde_json::Map::new();
                 if let Ok(v) = &r.evaluation {
                     for e in v {
-                        outs.insert(e.name.clone(), super::identify::evaluation_json(e));
+                        outs.insert(e.name.clone(), e.to_json());
                     }
                 }
                 serde_json::json!({

@@ -252,6 +252,58 @@ fn separator_of(header: &str) -> char {
 }
 
 impl Record {
+    /// A record made of arrays (a notebook's): the time stamps `t` (in seconds) and the named
+    /// columns, checked as a file's cells are (equal lengths, finite values, distinct names);
+    /// `label` stands for the file in errors, whose line numbers are those of the record
+    /// written as CSV (header line 1, sample k on line k + 2).
+    pub fn from_arrays(
+        label: &str,
+        t: Vec<f64>,
+        columns: Vec<(String, Vec<f64>)>,
+    ) -> Result<Record, DataError> {
+        let path = PathBuf::from(label);
+        let mut names = vec!["t".to_string()];
+        let mut data = vec![t];
+        for (name, values) in columns {
+            if names.contains(&name) {
+                return Err(DataError::DuplicateColumn {
+                    path,
+                    line: 1,
+                    name,
+                });
+            }
+            names.push(name);
+            data.push(values);
+        }
+        for (name, col) in names.iter().zip(&data) {
+            if col.len() != data[0].len() {
+                return Err(DataError::ArrayLength {
+                    path,
+                    column: name.clone(),
+                    found: col.len(),
+                    expected: data[0].len(),
+                });
+            }
+            if let Some(k) = col.iter().position(|v| !v.is_finite()) {
+                return Err(DataError::NotFinite {
+                    path,
+                    line: k + 2,
+                    column: name.clone(),
+                    cell: col[k].to_string(),
+                });
+            }
+        }
+        if data[0].is_empty() {
+            return Err(DataError::Empty { path });
+        }
+        Ok(Record {
+            path,
+            names,
+            columns: data,
+            format: CsvFormat::default(),
+        })
+    }
+
     /// Number of rows.
     pub fn len(&self) -> usize {
         self.columns.first().map_or(0, Vec::len)

@@ -50,6 +50,13 @@ pub enum DataError {
         column: String,
         cell: String,
     },
+    #[error("{path}: column `{column}` has {found} values, the time has {expected}; give every signal one value per sample")]
+    ArrayLength {
+        path: PathBuf,
+        column: String,
+        found: usize,
+        expected: usize,
+    },
     #[error("{path}: has no column `{name}`; the columns are: {available}")]
     MissingColumn {
         path: PathBuf,

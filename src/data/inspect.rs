@@ -10,7 +10,7 @@
 //! where it already knows the thing: a clipping limit is the `saturation` effect's
 //! ([`crate::effect::saturation::detect`]), the noise level its estimate.
 
-use super::{DataError, Record, TimeSteps};
+use super::{DataError, IoRecord, Record, TimeSteps};
 use crate::effect::saturation;
 use crate::metrics::{quantile, quantile_select};
 use serde::Serialize;
@@ -658,6 +658,22 @@ pub fn screen(
             })
         }
     }
+}
+
+/// The columns `select` picks from `rec` for modelling, after the checks of [`screen`]: what a
+/// modelling command reads (the command says the findings); with repaired outliers, the
+/// columns of the repaired record.
+pub fn screened<E: From<DataError>>(
+    mut rec: Record,
+    policy: Outliers,
+    select: impl Fn(&Record) -> Result<IoRecord, E>,
+) -> Result<(IoRecord, Screening), E> {
+    let io = select(&rec)?;
+    let s = screen(&mut rec, &io.input_names(), &io.output_names(), policy)?;
+    if s.repaired == 0 {
+        return Ok((io, s));
+    }
+    Ok((select(&rec)?, s))
 }
 
 /// Reversals of `x` (direction changes after a move back of more than `band`, the diagnosis'

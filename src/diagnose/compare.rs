@@ -134,3 +134,64 @@ pub fn compare(rec: &IoRecord, predictions: &[Vec<f64>]) -> Vec<OutputComparison
         })
         .collect()
 }
+
+/// How one output's prediction band held the measurement.
+#[derive(Debug, Clone, Serialize)]
+pub struct BandCoverage {
+    pub output: String,
+    pub level: f64,
+    /// Share of the samples inside prediction +- half-width.
+    pub coverage: f64,
+    pub mean_half_width: f64,
+}
+
+/// The coverage of each output's band (outputs without a band are left out).
+pub fn band_coverage(
+    io: &IoRecord,
+    pred: &[Vec<f64>],
+    bands: &[Option<Vec<f64>>],
+) -> Vec<BandCoverage> {
+    io.outputs
+        .iter()
+        .zip(pred)
+        .zip(bands)
+        .filter_map(|((y, p), h)| {
+            let h = h.as_ref()?;
+            Some(BandCoverage {
+                output: y.name.clone(),
+                level: crate::narx::band::BAND_LEVEL,
+                coverage: crate::narx::band::coverage(&y.values, p, h, 0)?,
+                mean_half_width: h.iter().sum::<f64>() / h.len().max(1) as f64,
+            })
+        })
+        .collect()
+}
+
+/// A model against a record, as `compare --json` prints it.
+#[derive(Debug, Clone, Serialize)]
+pub struct CompareReport {
+    /// How each output's prediction band (where the model has one) held the measurement.
+    pub bands: Vec<BandCoverage>,
+    /// Where the record leaves the region the model was trained on.
+    pub extrapolation: Vec<crate::narx::region::Outside>,
+    /// Scores and where each output fails.
+    pub outputs: Vec<OutputComparison>,
+    /// The prediction's band half-widths per output (not in the JSON: the figures draw them).
+    #[serde(skip)]
+    pub half_widths: Vec<Option<Vec<f64>>>,
+}
+
+/// Compare `model`'s free-run prediction `pred` of `io` with the measurement.
+pub fn compare_model(
+    model: &dyn crate::model::Model,
+    io: &IoRecord,
+    pred: &[Vec<f64>],
+) -> Result<CompareReport, crate::model::ModelError> {
+    let half_widths = model.band(io)?;
+    Ok(CompareReport {
+        bands: band_coverage(io, pred, &half_widths),
+        extrapolation: model.outside(io),
+        outputs: compare(io, pred),
+        half_widths,
+    })
+}

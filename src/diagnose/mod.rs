@@ -168,6 +168,22 @@ pub fn diagnose(
     }
 }
 
+/// What `hystbench diagnose` runs: [`diagnose_model`] where the model's structure can be
+/// refitted (`config`: a grey-box model's or a plant's) and the refit test is on, else
+/// [`diagnose`] on the basis banks alone.
+pub fn diagnose_any(
+    rec: &IoRecord,
+    predictions: &[Vec<f64>],
+    effects: &[EffectName],
+    config: Option<&crate::graybox::GreyBoxConfig>,
+    opts: &DiagnoseOptions,
+) -> Diagnosis {
+    match config {
+        Some(c) if opts.refit.is_some() => diagnose_model(rec, predictions, c, opts),
+        _ => diagnose(rec, predictions, effects, opts),
+    }
+}
+
 /// Diagnose the prediction of a grey-box model whose structure `config` reproduces: the banks
 /// rank the effects it lacks, and the refit test ([`refit`]) of each decides what is missing
 /// (when `opts.refit` is set and the structure can be refitted on the record's first part).

@@ -161,6 +161,31 @@ impl GreyBoxConfig {
         Ok(cfg)
     }
 
+    /// With `fit`'s options: `plays` play operators per Prandtl-Ishlinskii path (fixed; `None`:
+    /// as many as the record supports), fitted on the first `train_fraction` of the record
+    /// (`None`: the whole record).
+    pub fn with_fit_options(
+        mut self,
+        plays: Option<usize>,
+        train_fraction: Option<f64>,
+    ) -> Result<GreyBoxConfig, GreyBoxError> {
+        if let Some(plays) = plays {
+            if plays == 0 {
+                return Err(GreyBoxError::NoPlays);
+            }
+            self.options.plays = plays;
+            self.options.adapt_plays = false;
+        }
+        if let Some(f) = train_fraction {
+            self.options.train_fraction = f;
+        }
+        let f = self.options.train_fraction;
+        if !(f > 0.0 && f <= 1.0) {
+            return Err(GreyBoxError::TrainFraction { value: f });
+        }
+        Ok(self)
+    }
+
     /// The effects switched on, in chain order.
     pub fn effects(&self) -> Vec<EffectName> {
         self.effects.iter().map(|s| s.effect).collect()

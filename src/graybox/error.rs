@@ -55,6 +55,8 @@ pub enum GreyBoxError {
     NoOutputs { path: PathBuf },
     #[error("{path}: `{column}` is constant; there is nothing to fit")]
     ConstantOutput { path: PathBuf, column: String },
+    #[error("--plays 0: give at least one play operator")]
+    NoPlays,
     #[error("--train-fraction {value}: must be a number in (0, 1]")]
     TrainFraction { value: f64 },
     #[error("{what} `{name}` of the model is not in the record {path} (its columns: {available})")]

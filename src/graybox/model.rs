@@ -202,6 +202,27 @@ impl FittedGreyBox {
         self.config.effects()
     }
 
+    /// The fit's summary as `fit --json` prints it: the effects, the mean RMSE and R^2 over
+    /// the outputs, and each output's for several.
+    pub fn summary_json(&self) -> serde_json::Value {
+        let mut v = serde_json::json!({
+            "effects": self.effects().iter().map(|e| e.as_str()).collect::<Vec<_>>(),
+            "rmse": self.fit.rmse,
+            "r2": self.fit.r2,
+        });
+        if self.fit.outputs.len() > 1 {
+            let mut outs = serde_json::Map::new();
+            for o in &self.fit.outputs {
+                outs.insert(
+                    o.name.clone(),
+                    serde_json::json!({"rmse": o.rmse, "r2": o.r2}),
+                );
+            }
+            v["outputs"] = serde_json::Value::Object(outs);
+        }
+        v
+    }
+
     /// Input names, in model order.
     pub fn inputs(&self) -> &[String] {
         &self.plant.inputs

@@ -41,6 +41,8 @@ pub enum NarxError {
         path: std::path::PathBuf,
         output: String,
     },
+    #[error("features `{value}`: {why}")]
+    Features { value: String, why: String },
     #[error("{effect}: no basis signals for this record ({why})")]
     NoFeatures { effect: String, why: &'static str },
     #[error("{path}: not a hystbench NARX model file: {why}")]

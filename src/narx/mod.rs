@@ -11,6 +11,8 @@
 //! - [`train`]: RMSProp / Adam one-step training, least-squares output-layer start,
 //!   simulation-error training over windows, free run with divergence detection;
 //! - [`config`]: the unfitted [`NarxConfig`] (protocol `default` or `study`);
+//! - [`settings`]: the settings a user gives (`identify`'s options, Python's `Narx(...)`)
+//!   turned into a [`NarxConfig`] in one place;
 //! - [`model`]: the fitted [`FittedNarx`], prediction, scores and the versioned model file;
 //! - [`state`]: a fitted model stepped one sample at a time (for the compensator);
 //! - [`base`]: the grey-box base candidate (a grey-box model alone or under a network on its
@@ -33,6 +35,7 @@ pub mod mlp;
 pub mod model;
 pub mod region;
 pub mod regressors;
+pub mod settings;
 pub mod state;
 pub mod synthetic;
 pub mod train;
@@ -41,4 +44,5 @@ pub use config::{features_of, Interaction, NarxConfig, OptimizerKind, Protocol, 
 pub use error::NarxError;
 pub use model::{FittedNarx, Mode, OutputPrediction};
 pub use regressors::Lags;
+pub use settings::NarxSettings;
 pub use state::NarxState;

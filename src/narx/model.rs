@@ -683,7 +683,66 @@ pub struct OutputEvaluation {
     pub diverged_members_test: Vec<usize>,
 }
 
+impl OutputEvaluation {
+    /// The scores as `identify --json` writes them for one output.
+    pub fn to_json(&self) -> serde_json::Value {
+        let mut m = serde_json::Map::new();
+        m.insert("r2_osa_train".into(), self.r2_osa_train.into());
+        m.insert("r2_fr_train".into(), self.r2_fr_train.into());
+        m.insert("r2_osa_test".into(), self.r2_osa_test.into());
+        m.insert("r2_fr_test".into(), self.r2_fr_test.into());
+        m.insert("rmse_fr_test".into(), self.rmse_fr_test.into());
+        if let Some(k) = self.diverged_at_test {
+            m.insert("diverged_at".into(), k.into());
+        }
+        if let Some(k) = self.diverged_at_train {
+            m.insert("diverged_at_train".into(), k.into());
+        }
+        if !self.diverged_members_test.is_empty() {
+            m.insert(
+                "ensemble_members_diverged_test".into(),
+                self.diverged_members_test.clone().into(),
+            );
+        }
+        serde_json::Value::Object(m)
+    }
+}
+
 impl FittedNarx {
+    /// The report of an identification, as `identify --json` prints it: the scores per output,
+    /// the training time, the choices made (model sampling, grey-box base, features) and where
+    /// the test record leaves the training region (`outside`).
+    pub fn report_json(
+        &self,
+        eval: &[OutputEvaluation],
+        outside: &[super::region::Outside],
+    ) -> serde_json::Value {
+        let mut outs = serde_json::Map::new();
+        for e in eval {
+            outs.insert(e.name.clone(), e.to_json());
+        }
+        let mut v = serde_json::json!({"outputs": outs, "train_seconds": self.train_seconds});
+        if let Some(ds) = &self.decimation_selection {
+            v["decimation"] = serde_json::json!({"chosen": ds.chosen, "tried": ds.tried});
+        }
+        v["extrapolation"] = serde_json::to_value(outside).unwrap_or_default();
+        if let Some(b) = &self.base {
+            v["greybox"] = serde_json::to_value(b).unwrap_or_default();
+            if let Some(o) = v["greybox"].as_object_mut() {
+                o.remove("plant");
+            }
+        }
+        if let Some(fs) = &self.feature_selection {
+            v["feature_selection"] = serde_json::json!({
+                "tried": fs.tried,
+                "chosen": fs.chosen,
+                "validation_mse_without": fs.selection_mse_without,
+                "validation_mse_with": fs.selection_mse_with,
+            });
+        }
+        v
+    }
+
     /// One-step and free-run scores on a training and a test record (both with outputs).
     pub fn evaluate(
         &self,
