@@ -566,7 +566,7 @@ fn compare(
             Ok(hystbench::diagnose::compare::compare_model(m, &io, &pred)?)
         })
         .map_err(py_err)?;
-    Ok((serde_json::to_string(&report).map_err(py_err)?, notes))
+    Ok((report.to_json(), notes))
 }
 
 /// `diagnose`: the `--json` diagnosis and notes.

@@ -171,7 +171,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         eprintln!("report: {}", dir.join("report.md").display());
     }
     if a.json {
-        crate::cli::print(&serde_json::to_string(&report)?);
+        crate::cli::print(&report.to_json());
     } else {
         crate::cli::print(&md);
     }

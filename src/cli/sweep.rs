@@ -2,14 +2,14 @@
 //! setting trained in parallel with its own seed, written as `results.csv` and a Markdown report
 //! laid out like the study's tables.
 
-use super::identify::{load_records, NetArgs};
+use super::identify::load_records;
 use super::Shard;
 use anyhow::Context;
 use clap::Args;
 use hystbench::data::{check_writable, OutputGuard};
 use hystbench::effect::noise::stream_seed;
 use hystbench::narx::model::OutputEvaluation;
-use hystbench::narx::NarxConfig;
+use hystbench::narx::{NarxConfig, NarxSettings};
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -159,27 +159,22 @@ pub fn grid(a: &SweepArgs) -> Vec<Setting> {
 }
 
 fn config(a: &SweepArgs, s: &Setting, inputs: Vec<String>, outputs: Vec<String>) -> NarxConfig {
-    let net = NetArgs {
+    let settings = NarxSettings {
+        lags: s.lags,
         neurons: s.neurons,
         layers: a.net.layers,
         interaction: a.net.interaction,
-        output_lags: None,
-        input_lags: None,
-        delay: 1,
         optimizer: a.net.optimizer,
+        lr: s.lr,
+        batch: s.batch,
         epochs: a.net.epochs,
         seed: s.seed,
         protocol: a.net.protocol,
         restarts: a.net.restarts,
         sim_steps: a.net.sim_steps,
-        sim_lr: None,
-        window: None,
-        sim_patience: None,
-        weight_decay: None,
-        validation_fraction: None,
-        ensemble: None,
+        ..NarxSettings::default()
     };
-    let mut c = net.settings(s.lags, s.lr, s.batch).network(inputs, outputs);
+    let mut c = settings.network(inputs, outputs);
     // the grid studies the plain network at each setting (and keeps the study grid's time): no
     // feature selection, no choice of the model's sampling
     c.robust.try_features.clear();

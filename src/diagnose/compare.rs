@@ -181,6 +181,13 @@ pub struct CompareReport {
     pub half_widths: Vec<Option<Vec<f64>>>,
 }
 
+impl CompareReport {
+    /// `compare --json`'s text: every object's keys in alphabetical order.
+    pub fn to_json(&self) -> String {
+        serde_json::to_value(self).map_or_else(|_| "{}".into(), |v| v.to_string())
+    }
+}
+
 /// Compare `model`'s free-run prediction `pred` of `io` with the measurement.
 pub fn compare_model(
     model: &dyn crate::model::Model,

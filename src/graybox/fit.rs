@@ -28,8 +28,8 @@ use rayon::prelude::*;
 use std::borrow::Cow;
 use std::ops::Range;
 
-/// One column of the Jacobian: (parameter index, d yhat / d theta before projection).
-type JacobianJob<'a> = Box<dyn Fn() -> (usize, Vec<f64>) + Sync + 'a>;
+/// One column of the Jacobian: d yhat / d theta of one parameter, before projection.
+type JacobianJob<'a> = Box<dyn Fn() -> Vec<f64> + Sync + 'a>;
 
 /// A term of a path, with where its columns and parameters are.
 struct PlacedTerm<'a> {
@@ -341,14 +341,16 @@ impl<'a> OutputProblem<'a> {
         let (phi, cons) = self.basis(th);
         let prepared = self.prepared(th, with_dynamics);
         let unfiltered = self.layout.unfiltered;
+        // each raw column is filtered in place (a term's own column is not copied): the basis
+        // and its filtered form are never held whole at once
         let psi = phi
-            .par_iter()
+            .into_par_iter()
             .enumerate()
             .map(|(k, col)| {
                 let mut c = if k >= unfiltered {
-                    col.to_vec()
+                    col.into_owned()
                 } else {
-                    apply_chain(&prepared, col)
+                    apply_chain_owned(&prepared, col.into_owned())
                 };
                 self.hold_out(&mut c);
                 c
@@ -510,43 +512,52 @@ impl<'a> OutputProblem<'a> {
         })
     }
 
-    /// Kaufman's Jacobian of the fitted output with respect to theta: partial derivatives at
-    /// fixed linear coefficients, projected onto the orthogonal complement of the active
-    /// regressors. Columns: d yhat / d theta.
-    fn jacobian(&self, th: &[f64], ev: &Eval) -> DMatrix<f64> {
+    /// Kaufman's Jacobian of the fitted output with respect to the parameters `free` (in that
+    /// order): partial derivatives at fixed linear coefficients, projected onto the orthogonal
+    /// complement of the active regressors. Columns: d yhat / d theta. Each column is computed,
+    /// projected and written in place: the derivatives are never held whole beside the matrix.
+    fn jacobian(&self, th: &[f64], ev: &Eval, free: &[usize]) -> DMatrix<f64> {
         let n = self.y.len();
-        let p = self.layout.n_theta;
-        let cols = self.derivatives(th, &ev.coef);
-        // projection onto the complement of the passive regressors
         let sol = &ev.sol;
-        let cols: Vec<(usize, Vec<f64>)> = cols
-            .into_par_iter()
-            .map(|(q, mut c)| {
-                self.hold_out(&mut c);
-                if c.iter().all(|v| v.is_finite()) && !sol.passive.is_empty() {
-                    let v: Vec<f64> = sol
-                        .passive
-                        .iter()
-                        .map(|&i| dot(&ev.psi[i], &c) * sol.scale[i])
-                        .collect();
-                    let a = chol_solve(&sol.chol_l, &v);
-                    for (k, &i) in sol.passive.iter().enumerate() {
-                        let alpha = a[k] * sol.scale[i];
-                        for (cv, pv) in c.iter_mut().zip(&ev.psi[i]) {
-                            *cv -= alpha * pv;
+        self.with_derivative_jobs(th, &ev.coef, |jobs| {
+            let mut by_param: Vec<Option<&JacobianJob<'_>>> = vec![None; self.layout.n_theta];
+            for (q, job) in &jobs {
+                by_param[*q] = Some(job);
+            }
+            let mut j = DMatrix::zeros(n, free.len());
+            if n == 0 {
+                return j;
+            }
+            j.as_mut_slice()
+                .par_chunks_mut(n)
+                .zip(free.par_iter())
+                .for_each(|(out, &q)| {
+                    let Some(job) = by_param[q] else {
+                        return;
+                    };
+                    let mut c = job();
+                    self.hold_out(&mut c);
+                    // projection onto the complement of the passive regressors
+                    if c.iter().all(|v| v.is_finite()) && !sol.passive.is_empty() {
+                        let v: Vec<f64> = sol
+                            .passive
+                            .iter()
+                            .map(|&i| dot(&ev.psi[i], &c) * sol.scale[i])
+                            .collect();
+                        let a = chol_solve(&sol.chol_l, &v);
+                        for (k, &i) in sol.passive.iter().enumerate() {
+                            let alpha = a[k] * sol.scale[i];
+                            for (cv, pv) in c.iter_mut().zip(&ev.psi[i]) {
+                                *cv -= alpha * pv;
+                            }
                         }
                     }
-                }
-                (q, c)
-            })
-            .collect();
-        let mut j = DMatrix::zeros(n, p);
-        for (q, c) in cols {
-            for (i, v) in c.into_iter().enumerate() {
-                j[(i, q)] = if v.is_finite() { v } else { 0.0 };
-            }
-        }
-        j
+                    for (o, v) in out.iter_mut().zip(c) {
+                        *o = if v.is_finite() { v } else { 0.0 };
+                    }
+                });
+            j
+        })
     }
 
     /// The model's output at parameters `th` and linear coefficients `coef` (held fixed).
@@ -571,7 +582,21 @@ impl<'a> OutputProblem<'a> {
 
     /// d yhat / d theta_q at fixed linear coefficients, one column per parameter (before the
     /// projection): the filters' through the filters after them, the terms' through all.
+    #[cfg(test)]
     pub(crate) fn derivatives(&self, th: &[f64], coef: &[f64]) -> Vec<(usize, Vec<f64>)> {
+        self.with_derivative_jobs(th, coef, |jobs| {
+            jobs.par_iter().map(|(q, f)| (*q, f())).collect()
+        })
+    }
+
+    /// The jobs that compute each parameter's column of [`OutputProblem::derivatives`] (the
+    /// parameter, the job), handed to `run`.
+    fn with_derivative_jobs<R>(
+        &self,
+        th: &[f64],
+        coef: &[f64],
+        run: impl FnOnce(Vec<(usize, JacobianJob<'_>)>) -> R,
+    ) -> R {
         let n = self.y.len();
         let (phi, _) = self.basis(th);
         let prepared = self.prepared(th, true);
@@ -585,7 +610,7 @@ impl<'a> OutputProblem<'a> {
                 }
             }
         }
-        let mut jobs: Vec<JacobianJob<'_>> = Vec::new();
+        let mut jobs: Vec<(usize, JacobianJob<'_>)> = Vec::new();
         let prepared = &prepared;
         for (i, f) in self.layout.filters.iter().enumerate() {
             if f.params.is_empty() {
@@ -595,10 +620,13 @@ impl<'a> OutputProblem<'a> {
             let x = std::sync::Arc::new(apply_chain(&prepared[..i], &w));
             for q in 0..f.params.len() {
                 let x = x.clone();
-                jobs.push(Box::new(move || {
-                    let d = f.filter.derivative(&th[f.params.clone()], &x, q);
-                    (f.params.start + q, apply_chain_owned(&prepared[i + 1..], d))
-                }));
+                jobs.push((
+                    f.params.start + q,
+                    Box::new(move || {
+                        let d = f.filter.derivative(&th[f.params.clone()], &x, q);
+                        apply_chain_owned(&prepared[i + 1..], d)
+                    }),
+                ));
             }
         }
         for path in &self.layout.paths {
@@ -611,10 +639,13 @@ impl<'a> OutputProblem<'a> {
                 for q in 0..t.params.len() {
                     let cols = cols.clone();
                     let coef = &coef[t.cols.clone()];
-                    jobs.push(Box::new(move || {
-                        let d = t.term.derivative(&th[t.params.clone()], q, &cols, coef);
-                        (t.params.start + q, apply_chain_owned(prepared, d))
-                    }));
+                    jobs.push((
+                        t.params.start + q,
+                        Box::new(move || {
+                            let d = t.term.derivative(&th[t.params.clone()], q, &cols, coef);
+                            apply_chain_owned(prepared, d)
+                        }),
+                    ));
                 }
             }
         }
@@ -625,13 +656,13 @@ impl<'a> OutputProblem<'a> {
             for q in 0..t.params.len() {
                 let cols = cols.clone();
                 let coef = &coef[t.cols.clone()];
-                jobs.push(Box::new(move || {
-                    let d = t.term.derivative(&th[t.params.clone()], q, &cols, coef);
-                    (t.params.start + q, d)
-                }));
+                jobs.push((
+                    t.params.start + q,
+                    Box::new(move || t.term.derivative(&th[t.params.clone()], q, &cols, coef)),
+                ));
             }
         }
-        jobs.par_iter().map(|f| f()).collect()
+        run(jobs)
     }
 
     /// This problem's parameters from those of `other` (same filters, other variants of the
@@ -788,7 +819,7 @@ impl LeastSquares for WithDynamics<'_, '_> {
         ev: &Eval,
         free: &[usize],
     ) -> Option<(DMatrix<f64>, DVector<f64>)> {
-        let j = self.0.jacobian(th, ev).select_columns(free.iter());
+        let j = self.0.jacobian(th, ev, free);
         // the residual is data - model, so J^T r is already the descent direction
         Some((j.tr_mul(&j), j.tr_mul(&DVector::from_column_slice(&ev.r))))
     }
