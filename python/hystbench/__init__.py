@@ -294,9 +294,7 @@ class Narx(_Model):
         m = _core._Model.load(_os.fspath(path))
         if m.kind != "narx":
             raise ValueError(f"{path}: a {m.kind} file, not a NARX model file")
-        n = Narx()
-        n._core = m
-        return n
+        return _wrap(m)
 
     def _fitted(self):
         if self._core is None:
@@ -317,21 +315,12 @@ class Narx(_Model):
 
 
 def _wrap(core):
-    return {"plant": Plant, "greybox": GreyBox, "narx": Narx}[core.kind]._from_core(core)
-
-
-def _from_core(cls, core):
-    obj = cls.__new__(cls)
-    _Model.__init__(obj, core)
-    if cls is Narx:
-        obj.settings, obj.scores = {}, None
-    if cls is GreyBox:
-        obj.summary = None
-    return obj
-
-
-for _c in (Plant, GreyBox, Narx):
-    _c._from_core = classmethod(_from_core)
+    """The Python class of a loaded model."""
+    if core.kind == "narx":
+        n = Narx()
+        n._core = core
+        return n
+    return Plant(core) if core.kind == "plant" else GreyBox(core)
 
 
 def load(path):

@@ -8,7 +8,7 @@
 use hystbench::data::inspect::{screened, Outliers};
 use hystbench::data::{IoRecord, Record};
 use hystbench::model::{LoadedModel, Model};
-use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::exceptions::{PyFileNotFoundError, PyValueError};
 use pyo3::prelude::*;
 use std::path::Path;
@@ -711,12 +711,6 @@ fn compensate<'py>(
     ))
 }
 
-/// The number of samples of a (k, n) array (for the Python side's checks).
-#[pyfunction]
-fn samples(a: PyReadonlyArray2<'_, f64>) -> usize {
-    a.shape()[1]
-}
-
 #[pymodule]
 fn _hystbench(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyModel>()?;
@@ -727,7 +721,6 @@ fn _hystbench(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(improve, m)?)?;
     m.add_function(wrap_pyfunction!(compensate, m)?)?;
-    m.add_function(wrap_pyfunction!(samples, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

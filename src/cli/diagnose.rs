@@ -2,7 +2,7 @@
 
 use crate::cli::compare::predict_record;
 use hystbench::diagnose::{diagnose_any, DiagnoseOptions, Diagnosis};
-use hystbench::model::load_model;
+use hystbench::model::LoadedModel;
 use std::path::PathBuf;
 
 /// Rank the effects a model lacks by how much of its residual each explains, out of sample.
@@ -83,14 +83,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         hystbench::plot::Format::from_path(f)?;
         hystbench::data::check_writable(f, a.force)?;
     }
-    let model = load_model(&a.model)?;
-    let (io, pred) = predict_record(&a.data, a.screen.outliers, model.as_ref())?;
+    let loaded = LoadedModel::load(&a.model)?;
+    let model = loaded.as_model();
+    let (io, pred) = predict_record(&a.data, a.screen.outliers, model)?;
     let mut opts = DiagnoseOptions::default();
     if a.no_refit {
         opts.refit = None;
     }
     // a grey-box model or a plant file: its structure can be refitted
-    let config = hystbench::improve::start_config(&a.model).ok();
+    let config = loaded.structure();
     let d = diagnose_any(&io, &pred, &model.effects(), config.as_ref(), &opts);
     if let Some(f) = &a.figure {
         let label = a
