@@ -41,8 +41,9 @@ fn protocol_on_a_piece_of_the_data() {
     assert_eq!(cur[..5], [0.0, 0.25, 0.5, 0.75, 1.0]);
     assert_eq!(cur[5..], cur[..5]);
     assert_eq!(data.train[0].group, "sine_A10mm_f1Hz");
+    assert!(data.other.is_empty());
     let (variants, headline) = mr_damper::run_greybox(&data).unwrap();
-    assert_eq!(variants.len(), 4);
+    assert_eq!(variants.len(), 6);
     assert!(variants[headline].scheduled);
     for v in &variants {
         assert_eq!(v.scores.len(), 5);
@@ -106,6 +107,25 @@ fn other_columns_are_refused() {
         e.contains("x_m,") && e.contains("t_s,x_mm,v_mm_s,F_N,I_A"),
         "{e}"
     );
+}
+
+/// A 5 ms sine record in the folder trains the grey-box models (at its own sampling period)
+/// but not the NARX; Spencer's full model runs on it from rest like the others.
+#[test]
+fn other_sampling_periods_train_the_grey_box() {
+    let d = copy_mini();
+    let five = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/mr-damper-5ms-piece.csv");
+    std::fs::copy(&five, d.path().join("sine_A25mm_f0.5Hz_I0.50A.csv")).unwrap();
+    let data = mr_damper::load(d.path()).unwrap();
+    assert_eq!((data.train.len(), data.other.len()), (10, 1));
+    assert_eq!((data.other[0].ts, data.other[0].current), (0.005, 0.5));
+    assert_eq!(data.other[0].group, "sine_A25mm_f0.5Hz");
+    let refs: Vec<&mr_damper::DamperRecord> = data.train.iter().chain(&data.other).collect();
+    let fit = mr_damper::fit_structure(&refs, Structure::Spencer, true).unwrap();
+    let p = fit.at(0.5).simulate(&data.other[0].x, 0.005);
+    let rms = hystbench::metrics::rmse(&data.other[0].f, &p);
+    let spread = hystbench::metrics::std_dev(&data.other[0].f);
+    assert!(rms < 0.5 * spread, "{rms} vs {spread}");
 }
 
 #[test]

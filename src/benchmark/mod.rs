@@ -28,11 +28,13 @@ pub mod mr_damper;
 
 use crate::data::{read_csv, DataError, IoRecord, Record, Signal};
 use crate::narx::{Lags, NarxConfig};
-use crate::numeric::lm::{levenberg_marquardt, LeastSquares, LmSettings, Scaling};
+use crate::numeric::lm::{
+    levenberg_marquardt, ForwardDifference, LeastSquares, LmSettings, Scaling,
+};
 use crate::numeric::lstsq::NormalEquations;
 use crate::plant::ode::bouc_wen_benchmark::IntegratorKind;
 use crate::plant::ode::{BoucWenBenchmarkSpec, OdeError};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DVector;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -472,9 +474,7 @@ pub struct GreyBoxFit {
     pub iterations: usize,
 }
 
-/// The physical model's simulation error on a record, as a least-squares problem: the residual
-/// `model - data`, the cost its RMS, the Jacobian by forward differences (one simulation per
-/// parameter, in parallel, summed in a fixed order).
+/// The physical model's simulation error on a record: the residual `model - data`.
 struct SimulationError<'a> {
     u: &'a [f64],
     y: &'a [f64],
@@ -488,48 +488,6 @@ impl SimulationError<'_> {
     }
 }
 
-impl LeastSquares for SimulationError<'_> {
-    type Eval = Vec<f64>;
-    fn eval(&self, theta: &[f64]) -> Option<Vec<f64>> {
-        self.residual(&GreyBoxParams::from_theta(theta))
-    }
-    fn cost(&self, r: &Vec<f64>) -> f64 {
-        (r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt()
-    }
-    fn normal_equations(
-        &self,
-        theta: &[f64],
-        r: &Vec<f64>,
-        free: &[usize],
-    ) -> Option<(DMatrix<f64>, DVector<f64>)> {
-        let h = 1e-6;
-        let cols: Vec<Vec<f64>> = free
-            .par_iter()
-            .map(|&j| {
-                let mut t = theta.to_vec();
-                t[j] += h;
-                self.eval(&t)
-                    .map(|rj| rj.iter().zip(r).map(|(a, b)| (a - b) / h).collect())
-            })
-            .collect::<Option<_>>()?;
-        let np = free.len();
-        let mut jtj = DMatrix::<f64>::zeros(np, np);
-        let mut jtr = DVector::<f64>::zeros(np);
-        for a in 0..np {
-            jtr[a] = cols[a].iter().zip(r).map(|(x, y)| x * y).sum();
-            for b in a..np {
-                let v: f64 = cols[a].iter().zip(&cols[b]).map(|(x, y)| x * y).sum();
-                jtj[(a, b)] = v;
-                jtj[(b, a)] = v;
-            }
-        }
-        Some((jtj, -jtr))
-    }
-    fn residual_norm(&self, r: &Vec<f64>) -> f64 {
-        r.iter().map(|v| v * v).sum::<f64>().sqrt()
-    }
-}
-
 /// Fits the grey-box model to a record from rest (`u`, `y`, sampling period `ts`) by
 /// Levenberg-Marquardt on the simulation error, `max_iter` iterations at most.
 pub fn fit_greybox(
@@ -539,6 +497,11 @@ pub fn fit_greybox(
     max_iter: usize,
 ) -> Result<GreyBoxFit, BenchmarkError> {
     let problem = SimulationError { u, y, ts };
+    // the cost its RMS, the Jacobian by forward differences (one simulation per parameter)
+    let lsq = ForwardDifference {
+        residual: |theta: &[f64]| problem.residual(&GreyBoxParams::from_theta(theta)),
+        step: 1e-6,
+    };
     let lin = linear_start(u, y, ts);
     // Small grid over gamma', delta' (the benchmark's class: hardening/softening loops).
     let grid: Vec<GreyBoxParams> = [0.0, 300.0, 1000.0]
@@ -552,7 +515,7 @@ pub fn fit_greybox(
         })
         .collect();
     let evals: Vec<Option<Vec<f64>>> = grid.par_iter().map(|p| problem.residual(p)).collect();
-    let cost = |r: &Option<Vec<f64>>| r.as_ref().map_or(f64::INFINITY, |r| problem.cost(r));
+    let cost = |r: &Option<Vec<f64>>| r.as_ref().map_or(f64::INFINITY, |r| lsq.cost(r));
     let (best, start_rms) =
         evals
             .iter()
@@ -586,12 +549,12 @@ pub fn fit_greybox(
         gradient_tolerance: 0.0,
     };
     let all: Vec<usize> = (0..6).collect();
-    let out = levenberg_marquardt(&problem, start.to_theta().to_vec(), r, &all, &settings);
+    let out = levenberg_marquardt(&lsq, start.to_theta().to_vec(), r, &all, &settings);
     Ok(GreyBoxFit {
         start,
         params: GreyBoxParams::from_theta(&out.theta),
         start_rms,
-        train_rms: problem.cost(&out.eval),
+        train_rms: lsq.cost(&out.eval),
         iterations: out.iterations,
     })
 }

@@ -28,6 +28,57 @@ pub trait LeastSquares {
     fn residual_norm(&self, eval: &Self::Eval) -> f64;
 }
 
+/// A least-squares problem given by its residual `model - data` alone: the cost is the RMS
+/// residual, the Jacobian forward differences of step `step` in each free parameter (one
+/// evaluation per parameter, in parallel, the sums in a fixed order: the same bytes whatever the
+/// thread count). For simulation-error fits of physical models, where no derivative is at hand.
+pub struct ForwardDifference<F> {
+    pub residual: F,
+    pub step: f64,
+}
+
+impl<F: Fn(&[f64]) -> Option<Vec<f64>> + Sync> LeastSquares for ForwardDifference<F> {
+    type Eval = Vec<f64>;
+    fn eval(&self, theta: &[f64]) -> Option<Vec<f64>> {
+        (self.residual)(theta)
+    }
+    fn cost(&self, r: &Vec<f64>) -> f64 {
+        (r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt()
+    }
+    fn normal_equations(
+        &self,
+        theta: &[f64],
+        r: &Vec<f64>,
+        free: &[usize],
+    ) -> Option<(DMatrix<f64>, DVector<f64>)> {
+        use rayon::prelude::*;
+        let h = self.step;
+        let cols: Vec<Vec<f64>> = free
+            .par_iter()
+            .map(|&j| {
+                let mut t = theta.to_vec();
+                t[j] += h;
+                (self.residual)(&t).map(|rj| rj.iter().zip(r).map(|(a, b)| (a - b) / h).collect())
+            })
+            .collect::<Option<_>>()?;
+        let np = free.len();
+        let mut jtj = DMatrix::<f64>::zeros(np, np);
+        let mut jtr = DVector::<f64>::zeros(np);
+        for a in 0..np {
+            jtr[a] = cols[a].iter().zip(r).map(|(x, y)| x * y).sum();
+            for b in a..np {
+                let v: f64 = cols[a].iter().zip(&cols[b]).map(|(x, y)| x * y).sum();
+                jtj[(a, b)] = v;
+                jtj[(b, a)] = v;
+            }
+        }
+        Some((jtj, -jtr))
+    }
+    fn residual_norm(&self, r: &Vec<f64>) -> f64 {
+        r.iter().map(|v| v * v).sum::<f64>().sqrt()
+    }
+}
+
 /// How the damping term scales each parameter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Scaling {

@@ -22,6 +22,15 @@ pub const SINE_COLUMNS: [&str; 5] = ["t_s", "x_mm", "v_mm_s", "F_N", "I_A"];
 pub const TRAIN_CURRENTS: [f64; 5] = [0.0, 0.25, 0.5, 0.75, 1.0];
 /// Training tests (the 1 ms sine records): amplitude and frequency as in the file names.
 pub const TRAIN_TESTS: [&str; 2] = ["A10mm_f1Hz", "A05mm_f3Hz"];
+/// The other sine tests (5 ms records: 25 mm at 0.1, 0.25, 0.5 Hz and 2 mm at 5 Hz): the
+/// grey-box models, which run at each record's own sampling period, train on them too when
+/// they are in the folder; the NARX, whose lags are counted in samples, does not.
+pub const OTHER_TESTS: [&str; 4] = [
+    "A25mm_f0.1Hz",
+    "A25mm_f0.25Hz",
+    "A25mm_f0.5Hz",
+    "A02mm_f5Hz",
+];
 /// NARX sampling: every this many samples of the 1 ms records.
 pub const NARX_DECIMATION: usize = 10;
 /// NARX lags (output and input).
@@ -112,7 +121,10 @@ pub struct EarthquakeRecord {
 /// Training and test data.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MrDamperData {
+    /// The ten 1 ms sine records (every model trains on them).
     pub train: Vec<DamperRecord>,
+    /// The sine records of [`OTHER_TESTS`] found in the folder (the grey-box models only).
+    pub other: Vec<DamperRecord>,
     pub test: EarthquakeRecord,
 }
 
@@ -214,10 +226,15 @@ pub fn load_files(train: &[PathBuf], test: &Path) -> Result<MrDamperData, MrDamp
     let mut all: Vec<(&Path, f64)> = train.iter().map(|r| (r.path.as_path(), r.ts)).collect();
     all.push((test.path.as_path(), test.ts));
     check_sampling_periods(&all)?;
-    Ok(MrDamperData { train, test })
+    Ok(MrDamperData {
+        train,
+        other: Vec::new(),
+        test,
+    })
 }
 
-/// Reads the data folder: the ten 1 ms sine records and the earthquake record.
+/// Reads the data folder: the ten 1 ms sine records, the earthquake record, and the sine
+/// records of [`OTHER_TESTS`] that are there.
 pub fn load(dir: &Path) -> Result<MrDamperData, MrDamperError> {
     if !dir.is_dir() {
         return Err(MrDamperError::NoFolder {
@@ -238,5 +255,14 @@ pub fn load(dir: &Path) -> Result<MrDamperData, MrDamperError> {
         .iter()
         .map(|f| dir.join(f))
         .collect();
-    load_files(&train, &dir.join(EARTHQUAKE_FILE))
+    let mut data = load_files(&train, &dir.join(EARTHQUAKE_FILE))?;
+    for t in OTHER_TESTS {
+        for i in TRAIN_CURRENTS {
+            let p = dir.join(train_file(t, i));
+            if p.is_file() {
+                data.other.push(read_sine(&p)?);
+            }
+        }
+    }
+    Ok(data)
 }

@@ -17,6 +17,9 @@ pub enum Structure {
     /// g = tanh((dx/dt) / v0): a Bingham plastic (yield force alpha, post-yield damping c0)
     /// smoothed over the velocity v0 (no displacement memory).
     Bingham,
+    /// Spencer et al.'s full model: the Bouc-Wen element in series with the pre-yield dashpot
+    /// c1, beside the spring k1 ([`super::spencer`]).
+    Spencer,
 }
 
 impl Structure {
@@ -25,6 +28,7 @@ impl Structure {
         match self {
             Structure::BoucWen => "bouc-wen",
             Structure::Bingham => "bingham",
+            Structure::Spencer => "spencer-full",
         }
     }
 }
@@ -47,6 +51,10 @@ pub struct SpencerParams {
     pub b: f64,
     /// Bouc-Wen Gamma (1/mm), |Gamma| <= B.
     pub gamma: f64,
+    /// Full model only (0 otherwise): the pre-yield dashpot c1 (N s/mm) and the accumulator
+    /// spring k1 (N/mm).
+    pub c1: f64,
+    pub k1: f64,
 }
 
 /// Rate (mm/s) and Bouc-Wen state z (mm, A = 1) of a displacement from rest.
@@ -77,12 +85,16 @@ pub fn shape_states(
             let g = v.iter().map(|w| (w / v0).tanh()).collect();
             Some((v, g))
         }
+        Structure::Spencer => None,
     }
 }
 
 impl SpencerParams {
     /// The force from rest for a displacement `x` (mm) sampled at `ts` (s).
     pub fn simulate(&self, x: &[f64], ts: f64) -> Vec<f64> {
+        if self.structure == Structure::Spencer {
+            return super::spencer::simulate_full(self, x, ts);
+        }
         match shape_states(self.structure, x, ts, self.b, self.gamma, self.v0) {
             Some((v, z)) => (0..x.len())
                 .map(|k| self.c0 * v[k] + self.k0 * x[k] + self.alpha * z[k] + self.f0)
@@ -104,6 +116,8 @@ impl SpencerParams {
             f0: l(a.f0, b.f0),
             b: l(a.b, b.b),
             gamma: l(a.gamma, b.gamma),
+            c1: l(a.c1, b.c1),
+            k1: l(a.k1, b.k1),
         }
     }
 }
@@ -174,7 +188,8 @@ pub struct SpencerFit {
     pub v0: f64,
     pub b: f64,
     pub gamma: f64,
-    /// c0, k0, alpha, f0 (and, when scheduled, their slopes in I: per A).
+    /// c0, k0, alpha, f0 (full model: then c1, k1) and, when scheduled, their slopes in I
+    /// (per A) in the same order.
     pub coef: Vec<f64>,
     pub train_rms_n: f64,
 }
@@ -182,10 +197,18 @@ pub struct SpencerFit {
 impl SpencerFit {
     /// The parameters at current `i` (A).
     pub fn at(&self, i: f64) -> SpencerParams {
+        let base = if self.structure == Structure::Spencer {
+            6
+        } else {
+            4
+        };
         let c = |k: usize| {
+            if k >= base {
+                return 0.0;
+            }
             self.coef[k]
-                + if self.coef.len() == 8 {
-                    i * self.coef[k + 4]
+                + if self.coef.len() == 2 * base {
+                    i * self.coef[k + base]
                 } else {
                     0.0
                 }
@@ -199,6 +222,8 @@ impl SpencerFit {
             f0: c(3),
             b: self.b,
             gamma: self.gamma,
+            c1: c(4),
+            k1: c(5),
         }
     }
 }
@@ -211,7 +236,8 @@ pub fn fit_spencer(recs: &[&DamperRecord], scheduled: bool) -> Option<SpencerFit
 /// Fits a model of the given structure to records: one model (`scheduled`: coefficients
 /// affine in I). Variable projection: least squares for (c0, k0, alpha, f0) inside; outside,
 /// Bouc-Wen: a grid then Nelder-Mead on (ln B, atanh(Gamma / B)); Bingham: a grid then a
-/// golden-section search on ln v0.
+/// golden-section search on ln v0. The full model is not linear in any of its dashpots:
+/// Levenberg-Marquardt from the simple Bouc-Wen model's fit ([`super::spencer::fit_full`]).
 pub fn fit_structure(
     recs: &[&DamperRecord],
     structure: Structure,
@@ -219,6 +245,11 @@ pub fn fit_structure(
 ) -> Option<SpencerFit> {
     let m = if scheduled { 8 } else { 4 };
     let (b, gamma, v0) = match structure {
+        Structure::Spencer => {
+            let mid = recs.iter().map(|r| r.current).sum::<f64>() / recs.len().max(1) as f64;
+            let anchor = fit_structure(recs, Structure::BoucWen, scheduled)?.at(mid);
+            return super::spencer::fit_full(recs, scheduled, &anchor);
+        }
         Structure::BoucWen => {
             let range = recs
                 .iter()
