@@ -375,35 +375,47 @@ impl Record {
         // the median step is robust against a single gap
         let steps = TimeSteps::of(t);
         let period = steps.median;
-        let tol = 0.01 * period;
-        for (k, &tk) in t.iter().enumerate() {
-            let expected = t[0] + k as f64 * period;
-            let deviation = tk - expected;
-            if deviation.abs() > tol + 1e-9 * tk.abs() * (n as f64).sqrt() {
-                let advice = if steps.gaps.is_empty() {
-                    "resample it onto a uniform grid (`hystbench split` does, by linear interpolation)".to_string()
-                } else {
-                    format!(
+        // the first sample off the grid of a period by more than 1 % of a step
+        let off_grid = |period: f64| {
+            let tol = 0.01 * period;
+            t.iter().enumerate().find_map(|(k, &tk)| {
+                let deviation = tk - (t[0] + k as f64 * period);
+                (deviation.abs() > tol + 1e-9 * tk.abs() * (n as f64).sqrt())
+                    .then_some((k, tk, deviation))
+            })
+        };
+        // The median step of times printed with few digits (1/1024 s as 0.000977 once t >= 1 s)
+        // is off by the rounding, which adds up over the record; the span's mean step is not.
+        // A record uniform on either grid is uniform.
+        let span = (t[n - 1] - t[0]) / (n - 1) as f64;
+        if let Some((k, tk, deviation)) = off_grid(period) {
+            if off_grid(span).is_none() {
+                return Ok(Some(span));
+            }
+            let advice = if steps.gaps.is_empty() {
+                "resample it onto a uniform grid (`hystbench split` does, by linear interpolation)"
+                    .to_string()
+            } else {
+                format!(
                         "split it at the gaps into separate records (`hystbench split --data {} --out DIR` writes one uniformly resampled file per part)",
                         self.path.display()
                     )
-                };
-                return Err(DataError::NonUniformTime {
-                    path: self.path.clone(),
-                    line: k + 2,
-                    column: name.to_string(),
-                    time: tk,
-                    period,
-                    deviation,
-                    detail: format!(
-                        "{}. A record must be uniformly sampled: {advice}",
-                        steps.describe()
-                    ),
-                });
-            }
+            };
+            return Err(DataError::NonUniformTime {
+                path: self.path.clone(),
+                line: k + 2,
+                column: name.to_string(),
+                time: tk,
+                period,
+                deviation,
+                detail: format!(
+                    "{}. A record must be uniformly sampled: {advice}",
+                    steps.describe()
+                ),
+            });
         }
         // refine with the whole span: more exact than one step
-        Ok(Some((t[n - 1] - t[0]) / (n - 1) as f64))
+        Ok(Some(span))
     }
 }
 
@@ -495,6 +507,31 @@ mod tests {
         assert_eq!(r.names, ["t", "u", "y"]);
         assert_eq!(r.column("y").unwrap(), &[2.0, 4.0]);
         assert_eq!(r.sampling_period().unwrap(), Some(0.5));
+    }
+
+    /// Times printed with 7 significant digits (a logger's 1/1024 s: 0.0009765625, ...,
+    /// 1.000977, 1.001953): the median step (0.000977) is off by the rounding and its grid
+    /// drifts off the samples; the record is uniform, and its period is the span's.
+    #[test]
+    fn times_printed_with_few_digits_are_uniform() {
+        let record = |gap: f64| {
+            let mut csv = String::from("t,u\n");
+            for k in 0..30_000 {
+                let t = k as f64 / 1024.0 + if k >= 20_000 { gap } else { 0.0 };
+                let digits = if t >= 1.0 {
+                    6 - t.log10().floor() as usize
+                } else {
+                    8
+                };
+                csv += &format!("{t:.digits$},{k}\n");
+            }
+            parse(&csv).unwrap()
+        };
+        let ts = record(0.0).sampling_period().unwrap().unwrap();
+        assert!((ts - 1.0 / 1024.0).abs() < 1e-9, "{ts}");
+        // a real gap is still refused
+        let e = record(0.1).sampling_period().unwrap_err().to_string();
+        assert!(e.contains("breaks uniform sampling"), "{e}");
     }
 
     #[test]
