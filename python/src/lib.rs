@@ -474,22 +474,9 @@ fn identify(
         }
     };
     let cfg = s.config(&train).map_err(py_err)?;
-    let need = cfg.lags.start() + 2;
-    if split && train.len() < need {
-        return Err(value_err(format!(
-            "{} samples split in halves leave {} for training, the lags need {need} (or give a test record)",
-            train.len() + test.len(),
-            train.len()
-        )));
-    }
     let (model, report) = py
         .detach(|| -> anyhow::Result<_> {
-            let model = cfg.fit(&train)?;
-            let eval = if split {
-                model.evaluate_split(&train, &test)?
-            } else {
-                model.evaluate(&train, &test)?
-            };
+            let (model, eval) = cfg.identify(&train, &test, split)?;
             let report = model.report_json(&eval, &model.outside(&test));
             Ok((model, report))
         })

@@ -5,7 +5,7 @@ use anyhow::Context;
 use clap::Args;
 use hystbench::data::inspect::Outliers;
 use hystbench::data::{check_writable, write_atomic, IoRecord};
-use hystbench::narx::{FittedNarx, Interaction, NarxConfig, NarxSettings, OptimizerKind, Protocol};
+use hystbench::narx::{Interaction, NarxConfig, NarxSettings, OptimizerKind, Protocol};
 use std::path::PathBuf;
 
 /// Identify a record with a NARX neural network (one MISO model per output).
@@ -211,15 +211,6 @@ pub fn run(args: IdentifyArgs) -> anyhow::Result<()> {
     settings.features = args.features.clone();
     settings.greybox = args.greybox != "off";
     let cfg = settings.config(&train).context("--features")?;
-    let need = cfg.lags.start() + 2;
-    if args.test.is_none() && train.len() < need {
-        anyhow::bail!(
-            "{}: {} rows split in halves leave {} for training, the lags need {need} (or give --test)",
-            args.data.display(),
-            train.len() + test.len(),
-            train.len()
-        );
-    }
     run_with(args, cfg, train, test)
 }
 
@@ -233,16 +224,11 @@ fn run_with(
         &format!("identifying on {} samples", train.len()),
         args.quiet,
     );
-    let model: FittedNarx = cfg
-        .fit(&train)
+    // without --test, the halves of one record: a grey-box base runs on through the test half
+    let (model, eval) = cfg
+        .identify(&train, &test, args.test.is_none())
         .context("training failed; nothing written")?;
     drop(spinner);
-    // the halves of one record: a grey-box base runs on through the training half
-    let eval = if args.test.is_none() {
-        model.evaluate_split(&train, &test)?
-    } else {
-        model.evaluate(&train, &test)?
-    };
     write_atomic(&args.out, model.to_json().as_bytes(), args.force)?;
     let outside = model.outside(&test);
     crate::cli::warn_outside(args.test.as_ref().unwrap_or(&args.data), &outside);

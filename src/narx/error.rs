@@ -17,6 +17,13 @@ pub enum NarxError {
         needed: usize,
         why: String,
     },
+    #[error("{path}: {total} samples split in halves leave {train} for training, the lags need {needed} (give a separate test record)")]
+    HalvesTooShort {
+        path: PathBuf,
+        total: usize,
+        train: usize,
+        needed: usize,
+    },
     #[error("{path}: output `{name}` is constant ({value}) in the training part; R^2 is undefined for a constant signal and a model of it is meaningless")]
     ConstantOutput {
         path: PathBuf,

@@ -25,8 +25,8 @@ use super::config::{NarxConfig, Protocol, RobustSettings, SHORT_ENSEMBLE};
 use super::mlp::Mlp;
 use super::model::{
     best_restart, ensemble_free_run, input_slices, names_str, DecimationSelection,
-    FeatureSelection, FittedNarx, LinearProbe, OutputModel, OutputTraining, RestartRecord,
-    DIVERGENCE_RANGES,
+    FeatureSelection, FittedNarx, LinearProbe, OutputEvaluation, OutputModel, OutputTraining,
+    RestartRecord, DIVERGENCE_RANGES,
 };
 use super::region::InputRegion;
 use super::regressors::{inverse_std, Regressor, RegressorForm, Series, Standardiser};
@@ -106,6 +106,33 @@ struct OutputData {
 type Restart = (Mlp, RestartRecord, usize, usize);
 
 impl NarxConfig {
+    /// `identify`: fits on `train` and scores on `test`, with `split` when they are the two
+    /// halves of one record (a grey-box base then runs on through the test half); halves too
+    /// short for the lags are refused before any work.
+    pub fn identify(
+        &self,
+        train: &IoRecord,
+        test: &IoRecord,
+        split: bool,
+    ) -> Result<(FittedNarx, Vec<OutputEvaluation>), NarxError> {
+        let needed = self.lags.start() + 2;
+        if split && train.len() < needed {
+            return Err(NarxError::HalvesTooShort {
+                path: train.path.clone(),
+                total: train.len() + test.len(),
+                train: train.len(),
+                needed,
+            });
+        }
+        let model = self.fit(train)?;
+        let eval = if split {
+            model.evaluate_split(train, test)?
+        } else {
+            model.evaluate(train, test)?
+        };
+        Ok((model, eval))
+    }
+
     /// Fit one network per output on a training record whose inputs and outputs are the
     /// configuration's signals (in order). With the default protocol and
     /// `robust.try_features` (default: hysteresis), the model is fitted without and with those
