@@ -193,6 +193,25 @@ fn bad_model_and_record_combinations_are_explained() {
     assert!(!dir.path().join("x.json").exists());
 }
 
+/// A record too short to halve for the lags: `identify` says so, names `--test`, writes nothing.
+#[test]
+fn identify_on_a_record_too_short_to_halve_names_test() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("short.csv");
+    std::fs::write(&data, "t,u,y\n0,1,2\n0.1,2,3\n0.2,3,1\n0.3,1,2\n").unwrap();
+    let m = dir.path().join("m.json");
+    let o = run(&["identify", "--data", s(&data), "--out", s(&m)]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success()
+            && e.contains("short.csv")
+            && e.contains("4 samples split in halves leave 2")
+            && e.contains("--test"),
+        "{e}"
+    );
+    assert!(!m.exists());
+}
+
 #[test]
 fn demo_runs_the_whole_story() {
     let dir = tempfile::tempdir().unwrap();

@@ -166,7 +166,7 @@ fn series(p0: &SpencerParams, p1: &SpencerParams) -> String {
         return String::new();
     }
     if p0 == p1 {
-        return format!(", c1 {:.2}, k1 {:.3}", p0.c1, p0.k1);
+        return format!(", c1 {:.2} N s/mm, k1 {:.3} N/mm", p0.c1, p0.k1);
     }
     format!(
         ", c1 {:.2} + {:.2} I N s/mm, k1 {:.3} N/mm",

@@ -5,7 +5,7 @@ use anyhow::Context;
 use clap::Args;
 use hystbench::data::inspect::Outliers;
 use hystbench::data::{check_writable, write_atomic, IoRecord};
-use hystbench::narx::{Interaction, NarxConfig, NarxSettings, OptimizerKind, Protocol};
+use hystbench::narx::{Interaction, NarxConfig, NarxError, NarxSettings, OptimizerKind, Protocol};
 use std::path::PathBuf;
 
 /// Identify a record with a NARX neural network (one MISO model per output).
@@ -227,7 +227,10 @@ fn run_with(
     // without --test, the halves of one record: a grey-box base runs on through the test half
     let (model, eval) = cfg
         .identify(&train, &test, args.test.is_none())
-        .context("training failed; nothing written")?;
+        .map_err(|e| match e {
+            NarxError::HalvesTooShort { .. } => anyhow::anyhow!("{e} with --test"),
+            e => anyhow::Error::new(e).context("training failed; nothing written"),
+        })?;
     drop(spinner);
     write_atomic(&args.out, model.to_json().as_bytes(), args.force)?;
     let outside = model.outside(&test);

@@ -17,7 +17,7 @@ pub enum NarxError {
         needed: usize,
         why: String,
     },
-    #[error("{path}: {total} samples split in halves leave {train} for training, the lags need {needed} (give a separate test record)")]
+    #[error("{path}: {total} samples split in halves leave {train} for training, the lags need {needed}: give a separate test record")]
     HalvesTooShort {
         path: PathBuf,
         total: usize,
