@@ -209,7 +209,7 @@ pub fn diagnose_model(
         })
         .map(|r| r.effect)
         .collect();
-    let Some(check) = refit_check(config, rec, &tested, &ropts) else {
+    let Some(check) = refit_check(config, rec, predictions, &tested, &ropts) else {
         return d;
     };
     let named = check.named();
@@ -260,7 +260,7 @@ fn add_it(model_effects: &[EffectName], m: EffectName) -> String {
 /// What to do, in words, from the refit test.
 fn refit_summary(check: &RefitCheck, d: &Diagnosis, model_effects: &[EffectName]) -> Vec<String> {
     let mut s = vec![format!(
-        "refit test: `{}` refitted without samples {}..{} with and without each effect, both run free through them; an effect is named when it cuts the held-out RMS error {:.1}x or more with a sign-flip p-value <= {:.2e} (a 5 % false-alarm rate over all tests)",
+        "refit test: `{}` refitted without samples {}..{} with and without each effect, both run free through them; an effect is named when it cuts the held-out RMS error {:.1}x or more with a sign-flip p-value <= {:.2e} (a 5 % false-alarm rate over all tests), and beats the model at hand there (`model` below) by as much",
         check.base, check.held_out.start, check.held_out.end, check.min_fall, check.level
     )];
     for e in &check.effects {
@@ -272,8 +272,8 @@ fn refit_summary(check: &RefitCheck, d: &Diagnosis, model_effects: &[EffectName]
                     .iter()
                     .map(|r| {
                         format!(
-                            "{} {:.4} -> {:.4} ({:.2}x, p = {:.2e})",
-                            r.output, r.rms_without, r.rms_with, r.fall, r.p_value
+                            "{} {:.4} -> {:.4} ({:.2}x, p = {:.2e}; model {:.4})",
+                            r.output, r.rms_without, r.rms_with, r.fall, r.p_value, r.rms_model
                         )
                     })
                     .collect();

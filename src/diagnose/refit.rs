@@ -14,6 +14,15 @@
 //! (blocks long against the plant's memory are close to independent). The power follows the
 //! record: a longer or less noisy record gives more consistent blocks.
 //!
+//! A third condition guards against a poor refit: the model with the effect, which did not
+//! see the held-out samples, must also beat the model at hand there by the same factor (the
+//! user's model, which usually did see them). When a short record's refit without its middle
+//! extrapolates badly (the middle holds the largest amplitudes of a modulated sine, say), any
+//! extra freedom cuts that refit's error; only an effect that beats the model fitted on every
+//! sample shows something the model lacks rather than something the refit lost. On the
+//! development zoo's 2-DoF 500-sample records this took false alarms on complete models from
+//! 26 % to 6 % for a loss of 3 of 154 decisive cases.
+//!
 //! ## References
 //! - R. A. Fisher, The Design of Experiments, 1935 (the randomisation test).
 //! - L. Ljung, System Identification, 2nd ed., 1999, section 16.4 (model validation on fresh
@@ -61,9 +70,12 @@ pub struct OutputRefit {
     pub rms_with: f64,
     /// `rms_without / rms_with`.
     pub fall: f64,
+    /// Held-out RMS error of the model at hand (fitted by the user, often on these samples).
+    pub rms_model: f64,
     /// Sign-flip p-value of the held-out improvement.
     pub p_value: f64,
-    /// The fall is at least `min_fall` and the p-value at most the per-test level.
+    /// The fall is at least `min_fall`, the p-value at most the per-test level, and
+    /// `rms_model / rms_with` at least `min_fall`.
     pub passes: bool,
 }
 
@@ -75,8 +87,7 @@ pub struct EffectRefit {
     pub outputs: Vec<OutputRefit>,
     /// Largest held-out fall over the outputs that pass the test (1 when none does).
     pub fall: f64,
-    /// Passes the test on some output: its fall is at least `min_fall` and its p-value below
-    /// the per-test level.
+    /// Passes the test on some output ([`OutputRefit::passes`]).
     pub significant: bool,
     /// Why it was not refitted (e.g. the record is too short for the effect).
     pub not_fitted: Option<String>,
@@ -146,11 +157,13 @@ fn block_sse(y: &[f64], pred: &[f64], range: &std::ops::Range<usize>, blocks: us
 type Prediction = Result<Vec<Vec<f64>>, String>;
 
 /// Refit `config` and `config` + each of `candidates` on the first part of `io`, and test
-/// each candidate's held-out improvement. `None` when the model itself cannot be refitted
+/// each candidate's held-out improvement (`predictions`: the model at hand's free run of `io`,
+/// which a named effect must beat on the held-out part too). `None` when the model itself cannot be refitted
 /// on the first part, or the held-out part has fewer samples than blocks.
 pub fn refit_check(
     config: &GreyBoxConfig,
     io: &IoRecord,
+    predictions: &[Vec<f64>],
     candidates: &[EffectName],
     opts: &RefitOptions,
 ) -> Option<RefitCheck> {
@@ -203,13 +216,17 @@ pub fn refit_check(
                         let rms_with = (with.iter().sum::<f64>() / m).sqrt();
                         let fall = rms_without / rms_with.max(f64::MIN_POSITIVE);
                         let p_value = sign_flip_p(&d);
+                        let rms_model =
+                            (block_sse(&y.values, &predictions[o], &held_out, 1)[0] / m).sqrt();
+                        let beats_model = rms_with * opts.min_fall <= rms_model;
                         OutputRefit {
                             output: y.name.clone(),
                             rms_without,
                             rms_with,
                             fall,
+                            rms_model,
                             p_value,
-                            passes: fall >= opts.min_fall && p_value <= level,
+                            passes: fall >= opts.min_fall && p_value <= level && beats_model,
                         }
                     })
                     .collect();

@@ -83,6 +83,10 @@ impl HiddenCase {
     pub fn wrong(&self) -> bool {
         self.named.is_some_and(|n| n != self.effect)
     }
+    /// After `improve`, within [`NEAR_NOISE`] times the member's noise level `noise_rms`.
+    pub fn near_noise(&self, noise_rms: f64) -> bool {
+        self.rmse_improved <= NEAR_NOISE * noise_rms
+    }
 }
 
 /// One member of the zoo.
@@ -276,7 +280,7 @@ fn summarise(effect: EffectName, members: &[MemberLoop]) -> Option<EffectSummary
         ),
         near_noise: cases
             .iter()
-            .filter(|(noise, c)| c.rmse_improved <= NEAR_NOISE * noise)
+            .filter(|(noise, c)| c.near_noise(*noise))
             .count(),
     })
 }
@@ -418,17 +422,29 @@ impl LoopScore {
                 classes.push((c, dec, right));
             }
         }
-        s += "\n\n| class | members | complete fitted | false alarms | decisive cases named right |\n|---|---|---|---|---|\n";
+        s += "\n\n| class | members | complete fitted | false alarms | decisive cases named right | loop within 2x of noise | time (s, one thread's share) |\n|---|---|---|---|---|---|---|\n";
         for (c, dec, right) in classes {
             let ms: Vec<&MemberLoop> = self.members.iter().filter(|m| m.class == c).collect();
             let fitted = ms.iter().filter(|m| m.rmse_complete.is_some()).count();
             let alarms = ms.iter().filter(|m| m.false_alarm.is_some()).count();
+            let cases = ms.iter().map(|m| m.hidden.len()).sum();
+            let near: usize = ms
+                .iter()
+                .map(|m| {
+                    m.hidden
+                        .iter()
+                        .filter(|h| h.near_noise(m.noise_rms))
+                        .count()
+                })
+                .sum();
+            let seconds: f64 = ms.iter().map(|m| m.seconds).sum();
             let _ = writeln!(
                 s,
-                "| {c} | {} | {fitted} | {} | {} |",
+                "| {c} | {} | {fitted} | {} | {} | {} | {seconds:.0} |",
                 ms.len(),
                 share(alarms, fitted),
-                share(right, dec)
+                share(right, dec),
+                share(near, cases)
             );
         }
         let skipped: Vec<String> = self
