@@ -422,7 +422,7 @@ impl LoopScore {
                 classes.push((c, dec, right));
             }
         }
-        s += "\n\n| class | members | complete fitted | false alarms | decisive cases named right | loop within 2x of noise | time (s, one thread's share) |\n|---|---|---|---|---|---|---|\n";
+        s += "\n\n| class | members | complete fitted | false alarms | decisive cases named right | loop within 2x of noise | time (s, members summed) |\n|---|---|---|---|---|---|---|\n";
         for (c, dec, right) in classes {
             let ms: Vec<&MemberLoop> = self.members.iter().filter(|m| m.class == c).collect();
             let fitted = ms.iter().filter(|m| m.rmse_complete.is_some()).count();
