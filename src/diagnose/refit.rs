@@ -158,8 +158,8 @@ type Prediction = Result<Vec<Vec<f64>>, String>;
 
 /// Refit `config` and `config` + each of `candidates` on the first part of `io`, and test
 /// each candidate's held-out improvement (`predictions`: the model at hand's free run of `io`,
-/// which a named effect must beat on the held-out part too). `None` when the model itself cannot be refitted
-/// on the first part, or the held-out part has fewer samples than blocks.
+/// which a named effect must beat on the held-out part too). `None` when the model itself
+/// cannot be refitted on the first part, or the held-out part has fewer samples than blocks.
 pub fn refit_check(
     config: &GreyBoxConfig,
     io: &IoRecord,
@@ -192,6 +192,14 @@ pub fn refit_check(
             (e, pred)
         })
         .collect();
+    let m = held_out.len() as f64;
+    // the model at hand's held-out error, per output
+    let rms_model: Vec<f64> = io
+        .outputs
+        .iter()
+        .zip(predictions)
+        .map(|(y, p)| (block_sse(&y.values, p, &held_out, 1)[0] / m).sqrt())
+        .collect();
     let mut effects: Vec<EffectRefit> = fitted
         .into_iter()
         .map(|(effect, pred)| match pred {
@@ -211,20 +219,17 @@ pub fn refit_check(
                         let without = block_sse(&y.values, &base_pred[o], &held_out, blocks);
                         let with = block_sse(&y.values, &pred[o], &held_out, blocks);
                         let d: Vec<f64> = without.iter().zip(&with).map(|(a, b)| a - b).collect();
-                        let m = held_out.len() as f64;
                         let rms_without = (without.iter().sum::<f64>() / m).sqrt();
                         let rms_with = (with.iter().sum::<f64>() / m).sqrt();
                         let fall = rms_without / rms_with.max(f64::MIN_POSITIVE);
                         let p_value = sign_flip_p(&d);
-                        let rms_model =
-                            (block_sse(&y.values, &predictions[o], &held_out, 1)[0] / m).sqrt();
-                        let beats_model = rms_with * opts.min_fall <= rms_model;
+                        let beats_model = rms_with * opts.min_fall <= rms_model[o];
                         OutputRefit {
                             output: y.name.clone(),
                             rms_without,
                             rms_with,
                             fall,
-                            rms_model,
+                            rms_model: rms_model[o],
                             p_value,
                             passes: fall >= opts.min_fall && p_value <= level && beats_model,
                         }

@@ -412,31 +412,25 @@ impl LoopScore {
             share(self.false_alarms, self.complete),
             share(self.complete_near_noise, self.complete)
         );
-        let mut classes: Vec<(Class, usize, usize)> = Vec::new();
+        s += "\n\n| class | members | complete fitted | false alarms | decisive cases named right | loop within 2x of noise | time (s, members summed) |\n|---|---|---|---|---|---|---|\n";
         for c in Class::ALL {
             let ms: Vec<&MemberLoop> = self.members.iter().filter(|m| m.class == c).collect();
-            if !ms.is_empty() {
-                let cases: Vec<&HiddenCase> = ms.iter().flat_map(|m| &m.hidden).collect();
-                let dec = cases.iter().filter(|c| c.decisive()).count();
-                let right = cases.iter().filter(|c| c.decisive() && c.right()).count();
-                classes.push((c, dec, right));
+            if ms.is_empty() {
+                continue;
             }
-        }
-        s += "\n\n| class | members | complete fitted | false alarms | decisive cases named right | loop within 2x of noise | time (s, members summed) |\n|---|---|---|---|---|---|---|\n";
-        for (c, dec, right) in classes {
-            let ms: Vec<&MemberLoop> = self.members.iter().filter(|m| m.class == c).collect();
+            // each case with its member's noise level
+            let cases: Vec<(f64, &HiddenCase)> = ms
+                .iter()
+                .flat_map(|m| m.hidden.iter().map(move |h| (m.noise_rms, h)))
+                .collect();
+            let dec = cases.iter().filter(|(_, h)| h.decisive()).count();
+            let right = cases
+                .iter()
+                .filter(|(_, h)| h.decisive() && h.right())
+                .count();
+            let near = cases.iter().filter(|(n, h)| h.near_noise(*n)).count();
             let fitted = ms.iter().filter(|m| m.rmse_complete.is_some()).count();
             let alarms = ms.iter().filter(|m| m.false_alarm.is_some()).count();
-            let cases = ms.iter().map(|m| m.hidden.len()).sum();
-            let near: usize = ms
-                .iter()
-                .map(|m| {
-                    m.hidden
-                        .iter()
-                        .filter(|h| h.near_noise(m.noise_rms))
-                        .count()
-                })
-                .sum();
             let seconds: f64 = ms.iter().map(|m| m.seconds).sum();
             let _ = writeln!(
                 s,
@@ -444,7 +438,7 @@ impl LoopScore {
                 ms.len(),
                 share(alarms, fitted),
                 share(right, dec),
-                share(near, cases)
+                share(near, cases.len())
             );
         }
         let skipped: Vec<String> = self
