@@ -355,16 +355,18 @@ impl FilterFit for CreepFilter {
         }
         let a: Vec<f64> = self.taus.iter().map(|t| (-self.ts / t).exp()).collect();
         let g = th.to_vec();
-        Prepared::Apply(Box::new(move |out: &mut [f64]| {
-            let mut z = vec![0.0; a.len()];
-            for v in out.iter_mut() {
-                let w = *v;
-                let mut o = w;
-                for ((zi, &ai), &gi) in z.iter_mut().zip(&a).zip(&g) {
-                    o += gi * *zi;
-                    *zi = ai * *zi + (1.0 - ai) * w;
+        Prepared::Apply(Box::new(move |cols: &mut [&mut [f64]]| {
+            for out in cols.iter_mut() {
+                let mut z = vec![0.0; a.len()];
+                for v in out.iter_mut() {
+                    let w = *v;
+                    let mut o = w;
+                    for ((zi, &ai), &gi) in z.iter_mut().zip(&a).zip(&g) {
+                        o += gi * *zi;
+                        *zi = ai * *zi + (1.0 - ai) * w;
+                    }
+                    *v = o;
                 }
-                *v = o;
             }
         }))
     }

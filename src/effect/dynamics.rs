@@ -287,10 +287,24 @@ fn filtered(d: &Dynamics, ts: f64, x: &[f64]) -> Vec<f64> {
     match prepared(d, ts) {
         Prepared::Apply(f) => {
             let mut out = x.to_vec();
-            f(&mut out);
+            f(&mut [&mut out]);
             out
         }
         _ => vec![f64::NAN; x.len()],
+    }
+}
+
+/// The discretised second-order filter (state matrix `p` row by row, input vector `gm`, one
+/// sample of delay) on one signal in place.
+fn resonate(p: &[f64; 4], gm: &[f64; 2], out: &mut [f64]) {
+    let (mut x0, mut x1) = (0.0, 0.0);
+    for v in out.iter_mut() {
+        let w = *v;
+        *v = x0;
+        let n0 = p[0] * x0 + p[1] * x1 + gm[0] * w;
+        let n1 = p[2] * x0 + p[3] * x1 + gm[1] * w;
+        x0 = n0;
+        x1 = n1;
     }
 }
 
@@ -299,15 +313,33 @@ fn prepared(d: &Dynamics, ts: f64) -> Prepared {
         Ok((phi, gam)) => {
             let p = [phi[(0, 0)], phi[(0, 1)], phi[(1, 0)], phi[(1, 1)]];
             let gm = [gam[0], gam[1]];
-            Prepared::Apply(Box::new(move |out: &mut [f64]| {
-                let (mut x0, mut x1) = (0.0, 0.0);
-                for v in out.iter_mut() {
-                    let w = *v;
-                    *v = x0;
-                    let n0 = p[0] * x0 + p[1] * x1 + gm[0] * w;
-                    let n1 = p[2] * x0 + p[3] * x1 + gm[1] * w;
-                    x0 = n0;
-                    x1 = n1;
+            Prepared::Apply(Box::new(move |cols: &mut [&mut [f64]]| {
+                // four columns side by side: the recursion's latency is shared (each column's
+                // arithmetic is the same as alone)
+                let mut rest = &mut cols[..];
+                while let [a, b, c, d, tail @ ..] = rest {
+                    let n = a.len();
+                    if b.len() == n && c.len() == n && d.len() == n {
+                        let (mut x0, mut x1) = ([0.0; 4], [0.0; 4]);
+                        for k in 0..n {
+                            let w = [a[k], b[k], c[k], d[k]];
+                            (a[k], b[k], c[k], d[k]) = (x0[0], x0[1], x0[2], x0[3]);
+                            for l in 0..4 {
+                                let n0 = p[0] * x0[l] + p[1] * x1[l] + gm[0] * w[l];
+                                let n1 = p[2] * x0[l] + p[3] * x1[l] + gm[1] * w[l];
+                                x0[l] = n0;
+                                x1[l] = n1;
+                            }
+                        }
+                    } else {
+                        for out in [a, b, c, d] {
+                            resonate(&p, &gm, out);
+                        }
+                    }
+                    rest = tail;
+                }
+                for out in rest.iter_mut() {
+                    resonate(&p, &gm, out);
                 }
             }))
         }
@@ -513,6 +545,53 @@ impl Effect for DynamicsEffect {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn columns_filtered_side_by_side_equal_each_filtered_alone() {
+        let d = DynamicsSpec {
+            natural_frequency_hz: 40.0,
+            damping_ratio: 0.05,
+            dc_gain: 1.0,
+        }
+        .check()
+        .unwrap();
+        let Prepared::Apply(f) = prepared(&d, 1e-3) else {
+            panic!("a valid filter")
+        };
+        // six columns (a group of four, then two alone), one of another length
+        let mut cols: Vec<Vec<f64>> = (0..6)
+            .map(|j| {
+                let n = if j == 2 { 700 } else { 1000 };
+                (0..n)
+                    .map(|k| ((k * (j + 1)) as f64 * 0.01).sin())
+                    .collect()
+            })
+            .collect();
+        let alone: Vec<Vec<f64>> = cols
+            .iter()
+            .map(|c| {
+                let mut c = c.clone();
+                f(&mut [c.as_mut_slice()]);
+                c
+            })
+            .collect();
+        let mut slices: Vec<&mut [f64]> = cols.iter_mut().map(Vec::as_mut_slice).collect();
+        f(&mut slices);
+        assert_eq!(cols, alone);
+        // and the same columns of one length take the four-wide path
+        let mut same: Vec<Vec<f64>> = (0..5).map(|j| alone[j.min(1)].clone()).collect();
+        let want: Vec<Vec<f64>> = same
+            .iter()
+            .map(|c| {
+                let mut c = c.clone();
+                f(&mut [c.as_mut_slice()]);
+                c
+            })
+            .collect();
+        let mut slices: Vec<&mut [f64]> = same.iter_mut().map(Vec::as_mut_slice).collect();
+        f(&mut slices);
+        assert_eq!(same, want);
+    }
 
     #[test]
     fn step_response_matches_closed_form() {

@@ -152,8 +152,9 @@ pub trait TermFit: Send + Sync {
     fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec;
 }
 
-/// A filter that works on a signal in place.
-pub type InPlace = Box<dyn Fn(&mut [f64]) + Send + Sync>;
+/// A filter that works in place on signals of one length, each filtered alone (a filter may
+/// run them side by side for speed; each signal's arithmetic is the same as alone).
+pub type InPlace = Box<dyn Fn(&mut [&mut [f64]]) + Send + Sync>;
 
 /// A filter applied to a signal in place, or a mark that it cannot be applied.
 pub enum Prepared {

@@ -11,15 +11,16 @@ use crate::plant::{PlantSpec, Units};
 use rayon::prelude::*;
 use std::time::Instant;
 
-/// Initialise (plus `extra` starts), then two Levenberg-Marquardt stages: creep held fixed from
-/// each start, then everything from the best.
+/// Initialise (plus `extra` starts; `coarse` is dropped once they are chosen), then two
+/// Levenberg-Marquardt stages: creep held fixed from each start, then everything from the best.
 fn fit_problem(
     prob: &OutputProblem,
-    coarse: &OutputProblem,
+    coarse: OutputProblem,
     extra: Vec<Vec<f64>>,
     options: &super::FitOptions,
 ) -> Result<LmResult, GreyBoxError> {
-    let mut starts = prob.initial(coarse, 3);
+    let mut starts = prob.initial(&coarse, 3);
+    drop(coarse);
     starts.extend(extra);
     let stage1 = prob.first_stage();
     let mut best: Option<LmResult> = None;
@@ -395,13 +396,13 @@ impl GreyBoxConfig {
             let mut st_w = st.clone();
             st_w.terms[i].variant = w;
             let simple = problem(&st_w, 0);
-            let r = fit_problem(&simple, &problem(&st_w, 0), Vec::new(), &self.options)?;
+            let r = fit_problem(&simple, problem(&st_w, 0), Vec::new(), &self.options)?;
             iterations += r.iterations;
             extra.push(prob.theta_from(&simple, &r.theta));
         }
         let mut res = fit_problem(
             &prob,
-            &problem(&st, self.options.plays.min(3)),
+            problem(&st, self.options.plays.min(3)),
             extra,
             &self.options,
         )?;
@@ -427,9 +428,12 @@ impl GreyBoxConfig {
             );
         }
         let spec = prob.output_spec(&res.theta, &res.eval.coef);
+        let n_theta = prob.n_theta();
+        // its basis (the play operators' outputs) is not needed by the second stage
+        drop(prob);
         if self.options.output_map && !self.options.choose_ridge {
             if let Some(better) =
-                self.output_map_stage(&st, &prob, &res, &spec, u, names, train.ts, &problem)
+                self.output_map_stage(&st, n_theta, &res, &spec, u, names, train.ts, &problem)
             {
                 return Ok(better);
             }
@@ -447,7 +451,7 @@ impl GreyBoxConfig {
     fn output_map_stage<'a>(
         &self,
         st: &OutputStructure,
-        prob: &OutputProblem,
+        n_theta: usize,
         res: &LmResult,
         spec: &crate::plant::OutputSpec,
         u: &[&[f64]],
@@ -471,7 +475,7 @@ impl GreyBoxConfig {
         if plain {
             let prob_pi = problem(&st_pi, self.options.plays);
             let coarse = problem(&st_pi, self.options.plays.min(3));
-            if let Ok(r) = fit_problem(&prob_pi, &coarse, Vec::new(), &self.options) {
+            if let Ok(r) = fit_problem(&prob_pi, coarse, Vec::new(), &self.options) {
                 firsts.push(prob_pi.output_spec(&r.theta, &r.eval.coef));
             }
         }
@@ -488,7 +492,7 @@ impl GreyBoxConfig {
             let mut st2 = st.clone();
             st2.previous = previous;
             let prob2 = problem(&st2, self.options.plays);
-            if prob2.n_theta() != prob.n_theta() {
+            if prob2.n_theta() != n_theta {
                 continue;
             }
             let all = vec![true; prob2.n_theta()];
@@ -691,6 +695,52 @@ mod tests {
             time_name: "t".into(),
             inputs,
             outputs,
+        }
+    }
+
+    /// Kaufman's normal equations accumulated by row blocks (over several chunks of blocks,
+    /// with a held-out stretch) agree with the same equations from every derivative projected
+    /// on its own over the whole record.
+    #[test]
+    fn block_normal_equations_match_the_dense_ones() {
+        for effects in [
+            "hysteresis,creep,dynamics",
+            "bouc-wen,creep,dynamics,viscous",
+        ] {
+            let n = 3 * crate::numeric::gram::BLOCK_ROWS * crate::numeric::gram::CHUNK_BLOCKS / 2;
+            let rec = record(1, n);
+            let mut cfg = GreyBoxConfig::from_effect_list(effects).unwrap();
+            cfg.options.plays = 5;
+            let u: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
+            let st = cfg.structure(&rec, 0).unwrap();
+            let prob = OutputProblem::new(
+                "y1",
+                &rec.outputs[0].values,
+                u,
+                rec.input_names(),
+                rec.ts,
+                &st,
+                cfg.options.plays,
+                Some(n / 3..n / 2),
+            );
+            let mut th = prob.initial(&prob, 1).remove(0);
+            for (i, t) in th.iter_mut().enumerate() {
+                *t += 0.05 + 0.01 * i as f64;
+            }
+            let ev = prob.eval(&th, true).expect("a finite model");
+            let free: Vec<usize> = (0..prob.n_theta()).rev().collect();
+            let (a, b) = prob.block_normal_equations(&th, &ev, &free);
+            let (a0, b0) = prob.dense_normal_equations(&th, &ev, &free);
+            let rel = |x: f64, y: f64, scale: f64| (x - y).abs() / scale.max(1e-300);
+            let sa = a0.abs().max();
+            let sb = b0.abs().max();
+            for (x, y) in a.iter().zip(a0.iter()) {
+                assert!(rel(*x, *y, sa) < 1e-9, "{effects}: J^T J {x:e} vs {y:e}");
+            }
+            for (x, y) in b.iter().zip(b0.iter()) {
+                assert!(rel(*x, *y, sb) < 1e-9, "{effects}: J^T r {x:e} vs {y:e}");
+            }
+            assert_eq!(a, a.transpose(), "{effects}: J^T J symmetric");
         }
     }
 

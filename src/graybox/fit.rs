@@ -4,6 +4,11 @@
 //! filters', e.g. Bouc-Wen B and Gamma, creep gains, f_n and zeta) moved by Levenberg-Marquardt
 //! outside, with Kaufman's projected Jacobian.
 //!
+//! Both steps work on normal equations accumulated by row blocks ([`crate::numeric::gram`]):
+//! the basis' Gram matrix for the linear step, Kaufman's `J^T J` for the nonlinear one, whose
+//! Jacobian is projected and multiplied block by block and never held whole. Only the passive
+//! set's filtered columns outlive an evaluation.
+//!
 //! What the model is made of comes from the effects ([`crate::effect::fitting`]): each path
 //! has a gain column and the columns of the terms of its effects; the output's filters act on
 //! the sum. [`Layout`] says where each part's columns and parameters are.
@@ -21,6 +26,7 @@ use super::nnls::{chol_solve, nnls_gram, NnlsSolution};
 use super::{FitOptions, GreyBoxError};
 use crate::effect::fitting::{FilterFit, OutputSetup, PathSetup, Prepared, TermFit, LIMIT};
 use crate::effect::{Effect, EffectSpec};
+use crate::numeric::gram;
 use crate::numeric::lm::{self, LeastSquares, LmSettings, LmStop};
 use crate::plant::{OutputSpec, PathSpec};
 use nalgebra::{DMatrix, DVector};
@@ -111,8 +117,18 @@ pub(crate) struct Eval {
     pub cost: f64,
     pub r: Vec<f64>,
     pub coef: Vec<f64>,
-    psi: Vec<Vec<f64>>,
+    /// The filtered basis columns of the passive set (`sol.passive`, in that order): what the
+    /// Jacobian's projection needs (the columns held at zero are dropped once solved).
+    passive_psi: Vec<Vec<f64>>,
     sol: NnlsSolution,
+}
+
+impl Eval {
+    /// Drop the basis columns (kept while Levenberg-Marquardt iterates from this point; a
+    /// finished fit needs its cost and coefficients only).
+    fn release_basis(&mut self) {
+        self.passive_psi = Vec::new();
+    }
 }
 
 /// An effect chosen for a model, with its variant.
@@ -139,31 +155,21 @@ pub(crate) struct OutputStructure {
 
 /// Linear least squares of y on the columns (free coefficients), by the normal equations.
 fn least_squares(cols: &[&[f64]], y: &[f64]) -> Vec<f64> {
-    let m = cols.len();
-    let g = DMatrix::from_fn(m, m, |i, j| dot(cols[i], cols[j]));
-    let b = DVector::from_fn(m, |i, _| dot(cols[i], y));
-    nnls_gram(&g, &b, &vec![false; m]).coef
+    let (g, b) = normal_equations(cols, y);
+    nnls_gram(&g, &b, &vec![false; cols.len()]).coef
 }
 
-/// Dot product with eight partial sums (lets the compiler vectorise; order is fixed, so the
-/// result is the same on every run).
-pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len().min(b.len());
-    let (a, b) = (&a[..n], &b[..n]);
-    let mut acc = [0.0f64; 8];
-    let ca = a.chunks_exact(8);
-    let cb = b.chunks_exact(8);
-    let (ra, rb) = (ca.remainder(), cb.remainder());
-    for (x, y) in ca.zip(cb) {
-        for i in 0..8 {
-            acc[i] += x[i] * y[i];
-        }
-    }
-    let mut s = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
-    for (x, y) in ra.iter().zip(rb) {
-        s += x * y;
-    }
-    s
+/// The normal equations `G = Psi^T Psi`, `b = Psi^T y` of the columns `cols`, by row blocks
+/// ([`gram`]).
+fn normal_equations(cols: &[&[f64]], y: &[f64]) -> (DMatrix<f64>, DVector<f64>) {
+    let m = cols.len();
+    let mut all = cols.to_vec();
+    all.push(y);
+    let x = gram::gram(&all);
+    (
+        x.view((0, 0), (m, m)).into_owned(),
+        x.view((0, m), (m, 1)).column(0).into_owned(),
+    )
 }
 
 /// The prepared filters applied in order to a copy of `x` (NaN when one is invalid).
@@ -173,17 +179,27 @@ fn apply_chain(prepared: &[Prepared], x: &[f64]) -> Vec<f64> {
 
 /// The prepared filters applied in order to `x` (NaN when one is invalid).
 fn apply_chain_owned(prepared: &[Prepared], mut x: Vec<f64>) -> Vec<f64> {
-    if prepared.iter().any(|p| matches!(p, Prepared::Invalid)) {
-        x.fill(f64::NAN);
-        return x;
-    }
-    for p in prepared {
-        if let Prepared::Apply(f) = p {
-            f(&mut x);
-        }
-    }
+    apply_chain_many(prepared, std::slice::from_mut(&mut x));
     x
 }
+
+/// The prepared filters applied in order to each of the columns `xs` (NaN when one is
+/// invalid); a filter may run the columns side by side.
+fn apply_chain_many(prepared: &[Prepared], xs: &mut [Vec<f64>]) {
+    if prepared.iter().any(|p| matches!(p, Prepared::Invalid)) {
+        xs.iter_mut().for_each(|x| x.fill(f64::NAN));
+        return;
+    }
+    let mut cols: Vec<&mut [f64]> = xs.iter_mut().map(Vec::as_mut_slice).collect();
+    for p in prepared {
+        if let Prepared::Apply(f) = p {
+            f(&mut cols);
+        }
+    }
+}
+
+/// Columns filtered together (the resonator's recursion runs this many side by side).
+const FILTER_GROUP: usize = 4;
 
 impl<'a> OutputProblem<'a> {
     /// Set up the problem of one output; `plays` play operators per Prandtl-Ishlinskii path;
@@ -341,19 +357,25 @@ impl<'a> OutputProblem<'a> {
         let (phi, cons) = self.basis(th);
         let prepared = self.prepared(th, with_dynamics);
         let unfiltered = self.layout.unfiltered;
-        // each raw column is filtered in place (a term's own column is not copied): the basis
-        // and its filtered form are never held whole at once
-        let psi = phi
+        // the raw columns are filtered in place, a few side by side (a term's own column is
+        // not copied): the basis and its filtered form are never held whole at once
+        let mut groups: Vec<(bool, Vec<Cow<'_, [f64]>>)> = Vec::new();
+        for (k, col) in phi.into_iter().enumerate() {
+            let filtered = k < unfiltered;
+            match groups.last_mut() {
+                Some((f, g)) if *f == filtered && g.len() < FILTER_GROUP => g.push(col),
+                _ => groups.push((filtered, vec![col])),
+            }
+        }
+        let psi = groups
             .into_par_iter()
-            .enumerate()
-            .map(|(k, col)| {
-                let mut c = if k >= unfiltered {
-                    col.into_owned()
-                } else {
-                    apply_chain_owned(&prepared, col.into_owned())
-                };
-                self.hold_out(&mut c);
-                c
+            .flat_map_iter(|(filtered, group)| {
+                let mut cols: Vec<Vec<f64>> = group.into_iter().map(Cow::into_owned).collect();
+                if filtered {
+                    apply_chain_many(&prepared, &mut cols);
+                }
+                cols.iter_mut().for_each(|c| self.hold_out(c));
+                cols
             })
             .collect();
         (psi, cons)
@@ -372,9 +394,8 @@ impl<'a> OutputProblem<'a> {
         let (m, n) = (psi.len(), self.y.len());
         let blocks = super::blocks(n, folds);
         let normal = |r: Range<usize>| {
-            let g = DMatrix::from_fn(m, m, |i, j| dot(&psi[i][r.clone()], &psi[j][r.clone()]));
-            let b = DVector::from_fn(m, |i, _| dot(&psi[i][r.clone()], &self.y[r.clone()]));
-            (g, b)
+            let cols: Vec<&[f64]> = psi.iter().map(|c| &c[r.clone()]).collect();
+            normal_equations(&cols, &self.y[r])
         };
         let parts: Vec<(DMatrix<f64>, DVector<f64>)> =
             blocks.par_iter().map(|b| normal(b.clone())).collect();
@@ -464,16 +485,8 @@ impl<'a> OutputProblem<'a> {
     pub fn eval(&self, th: &[f64], with_dynamics: bool) -> Option<Eval> {
         let (psi, cons) = self.filtered_basis(th, with_dynamics);
         let m = psi.len();
-        let rows: Vec<Vec<f64>> = (0..m)
-            .into_par_iter()
-            .map(|i| {
-                (0..m)
-                    .map(|j| if j < i { 0.0 } else { dot(&psi[i], &psi[j]) })
-                    .collect()
-            })
-            .collect();
-        let mut g = DMatrix::from_fn(m, m, |i, j| if j >= i { rows[i][j] } else { rows[j][i] });
-        let b = DVector::from_iterator(m, psi.iter().map(|c| dot(c, &self.y)));
+        let cols: Vec<&[f64]> = psi.iter().map(Vec::as_slice).collect();
+        let (mut g, b) = normal_equations(&cols, &self.y);
         if g.iter().any(|v| !v.is_finite()) || b.iter().any(|v| !v.is_finite()) {
             return None;
         }
@@ -503,61 +516,154 @@ impl<'a> OutputProblem<'a> {
         if !cost.is_finite() {
             return None;
         }
+        let mut psi = psi;
+        let passive_psi = sol
+            .passive
+            .iter()
+            .map(|&i| std::mem::take(&mut psi[i]))
+            .collect();
         Some(Eval {
             cost,
             r,
             coef: sol.coef.clone(),
-            psi,
+            passive_psi,
             sol,
         })
     }
 
-    /// Kaufman's Jacobian of the fitted output with respect to the parameters `free` (in that
-    /// order): partial derivatives at fixed linear coefficients, projected onto the orthogonal
-    /// complement of the active regressors. Columns: d yhat / d theta. Each column is computed,
-    /// projected and written in place: the derivatives are never held whole beside the matrix.
-    fn jacobian(&self, th: &[f64], ev: &Eval, free: &[usize]) -> DMatrix<f64> {
+    /// The normal equations `J^T J`, `J^T r` of Kaufman's Jacobian of the fitted output with
+    /// respect to the parameters `free` (in that order): partial derivatives `D` at fixed
+    /// linear coefficients, projected onto the orthogonal complement of the active regressors
+    /// `P`, `J = D - P A` with `A = (P^T P)^-1 P^T D` (the passive set's Cholesky factor).
+    /// Computed by row blocks ([`gram`]): `P^T D` in one pass, then `J` block by block with
+    /// its products in a second; `J` is never held whole. A derivative with a non-finite value
+    /// is not projected and its non-finite values count as zero (as is every non-finite value
+    /// of `J`).
+    fn projected_normal_equations(
+        &self,
+        th: &[f64],
+        ev: &Eval,
+        free: &[usize],
+    ) -> (DMatrix<f64>, DVector<f64>) {
         let n = self.y.len();
+        let p = free.len();
         let sol = &ev.sol;
-        self.with_derivative_jobs(th, &ev.coef, |jobs| {
+        let derivatives: Vec<(Vec<f64>, bool)> = self.with_derivative_jobs(th, &ev.coef, |jobs| {
             let mut by_param: Vec<Option<&JacobianJob<'_>>> = vec![None; self.layout.n_theta];
             for (q, job) in &jobs {
                 by_param[*q] = Some(job);
             }
-            let mut j = DMatrix::zeros(n, free.len());
-            if n == 0 {
-                return j;
-            }
-            j.as_mut_slice()
-                .par_chunks_mut(n)
-                .zip(free.par_iter())
-                .for_each(|(out, &q)| {
+            free.par_iter()
+                .map(|&q| {
                     let Some(job) = by_param[q] else {
-                        return;
+                        return (vec![0.0; n], false);
                     };
                     let mut c = job();
                     self.hold_out(&mut c);
-                    // projection onto the complement of the passive regressors
-                    if c.iter().all(|v| v.is_finite()) && !sol.passive.is_empty() {
-                        let v: Vec<f64> = sol
-                            .passive
-                            .iter()
-                            .map(|&i| dot(&ev.psi[i], &c) * sol.scale[i])
-                            .collect();
-                        let a = chol_solve(&sol.chol_l, &v);
-                        for (k, &i) in sol.passive.iter().enumerate() {
-                            let alpha = a[k] * sol.scale[i];
-                            for (cv, pv) in c.iter_mut().zip(&ev.psi[i]) {
-                                *cv -= alpha * pv;
-                            }
-                        }
+                    let finite = c.iter().all(|v| v.is_finite());
+                    if !finite {
+                        c.iter_mut()
+                            .filter(|v| !v.is_finite())
+                            .for_each(|v| *v = 0.0);
                     }
-                    for (o, v) in out.iter_mut().zip(c) {
-                        *o = if v.is_finite() { v } else { 0.0 };
+                    (c, finite)
+                })
+                .collect()
+        });
+        let d: Vec<&[f64]> = derivatives.iter().map(|(c, _)| c.as_slice()).collect();
+        let passive: Vec<&[f64]> = ev.passive_psi.iter().map(Vec::as_slice).collect();
+        // A = S (L L^T)^-1 S P^T D, column by column (zero for a derivative not projected)
+        let mut alpha = DMatrix::zeros(passive.len(), p);
+        if !passive.is_empty() {
+            let pd = gram::cross_products(&passive, &d);
+            for (q, (_, finite)) in derivatives.iter().enumerate() {
+                if !finite {
+                    continue;
+                }
+                let v: Vec<f64> = sol
+                    .passive
+                    .iter()
+                    .enumerate()
+                    .map(|(k, &i)| pd[(k, q)] * sol.scale[i])
+                    .collect();
+                let a = chol_solve(&sol.chol_l, &v);
+                for (k, &i) in sol.passive.iter().enumerate() {
+                    alpha[(k, q)] = a[k] * sol.scale[i];
+                }
+            }
+        }
+        let r = ev.r.as_slice();
+        let products = gram::sum_by_row_blocks(n, p, p + 1, |rows| {
+            let mut j = gram::block_of(&d, rows.clone());
+            if !passive.is_empty() {
+                j.gemm(-1.0, &gram::block_of(&passive, rows.clone()), &alpha, 1.0);
+            }
+            j.iter_mut()
+                .filter(|v| !v.is_finite())
+                .for_each(|v| *v = 0.0);
+            let mut jr = DMatrix::zeros(rows.len(), p + 1);
+            jr.columns_mut(0, p).copy_from(&j);
+            jr.column_mut(p).copy_from_slice(&r[rows]);
+            gram::tr_mul_block(&j, &jr)
+        });
+        let mut jtj = products.columns(0, p).into_owned();
+        for i in 0..p {
+            for k in 0..i {
+                jtj[(i, k)] = jtj[(k, i)];
+            }
+        }
+        (jtj, products.column(p).into_owned())
+    }
+
+    /// [`OutputProblem::projected_normal_equations`] the plain way (the test's reference):
+    /// every derivative projected on its own over the whole record, then `J` held whole and
+    /// multiplied column by column.
+    #[cfg(test)]
+    pub(crate) fn dense_normal_equations(
+        &self,
+        th: &[f64],
+        ev: &Eval,
+        free: &[usize],
+    ) -> (DMatrix<f64>, DVector<f64>) {
+        let sol = &ev.sol;
+        let sum = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        let derivatives = self.derivatives(th, &ev.coef);
+        let j: Vec<Vec<f64>> = free
+            .iter()
+            .map(|&q| {
+                let mut c = derivatives.iter().find(|(p, _)| *p == q).unwrap().1.clone();
+                self.hold_out(&mut c);
+                let v: Vec<f64> = sol
+                    .passive
+                    .iter()
+                    .zip(&ev.passive_psi)
+                    .map(|(&i, p)| sum(p, &c) * sol.scale[i])
+                    .collect();
+                let a = chol_solve(&sol.chol_l, &v);
+                for (k, (&i, p)) in sol.passive.iter().zip(&ev.passive_psi).enumerate() {
+                    for (cv, pv) in c.iter_mut().zip(p) {
+                        *cv -= a[k] * sol.scale[i] * pv;
                     }
-                });
-            j
-        })
+                }
+                c
+            })
+            .collect();
+        let p = j.len();
+        (
+            DMatrix::from_fn(p, p, |a, b| sum(&j[a], &j[b])),
+            DVector::from_fn(p, |a, _| sum(&j[a], &ev.r)),
+        )
+    }
+
+    /// The block-wise normal equations, for the tests.
+    #[cfg(test)]
+    pub(crate) fn block_normal_equations(
+        &self,
+        th: &[f64],
+        ev: &Eval,
+        free: &[usize],
+    ) -> (DMatrix<f64>, DVector<f64>) {
+        self.projected_normal_equations(th, ev, free)
     }
 
     /// The model's output at parameters `th` and linear coefficients `coef` (held fixed).
@@ -819,9 +925,8 @@ impl LeastSquares for WithDynamics<'_, '_> {
         ev: &Eval,
         free: &[usize],
     ) -> Option<(DMatrix<f64>, DVector<f64>)> {
-        let j = self.0.jacobian(th, ev, free);
         // the residual is data - model, so J^T r is already the descent direction
-        Some((j.tr_mul(&j), j.tr_mul(&DVector::from_column_slice(&ev.r))))
+        Some(self.0.projected_normal_equations(th, ev, free))
     }
     fn residual_norm(&self, ev: &Eval) -> f64 {
         (2.0 * ev.cost).sqrt()
@@ -852,7 +957,8 @@ pub(crate) fn levenberg_marquardt(
         zero_cost: 1e-24 * y_energy,
         ..LmSettings::default()
     };
-    let out = lm::levenberg_marquardt(&WithDynamics(prob), theta0, ev, &idx, &settings);
+    let mut out = lm::levenberg_marquardt(&WithDynamics(prob), theta0, ev, &idx, &settings);
+    out.eval.release_basis();
     let message = match out.stop {
         LmStop::NoFreeParameter => "linear least squares (no nonlinear parameter)".into(),
         LmStop::ZeroResidual => "the residual is zero to rounding".into(),

@@ -3,8 +3,10 @@
 //! - [`ridge`]: ridge least squares on a few standardised regressors;
 //! - [`lm`]: Levenberg-Marquardt for nonlinear least squares;
 //! - [`lstsq`]: linear least squares by the normal equations (rows accumulated one at a time);
+//! - [`gram`]: cross products of long columns by row blocks (a fit's normal equations);
 //! - [`optimize`]: Nelder-Mead (2-D) and golden-section search.
 
+pub mod gram;
 pub mod lm;
 pub mod lstsq;
 pub mod optimize;
