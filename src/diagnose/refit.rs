@@ -32,6 +32,7 @@ use crate::data::IoRecord;
 use crate::effect::EffectName;
 use crate::graybox::GreyBoxConfig;
 use crate::model::predict_finite;
+use crate::numeric::gram;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -181,17 +182,20 @@ pub fn refit_check(
     let base_pred = predict_finite(&base, io).ok()?;
     let tests = (candidates.len() * io.outputs.len()).max(1);
     let level = opts.false_alarm / tests as f64;
-    let fitted: Vec<(EffectName, Prediction)> = candidates
-        .par_iter()
-        .map(|&e| {
-            let c = base_cfg.with_effect(e);
-            let pred = c
-                .fit(io)
-                .map_err(|x| x.to_string())
-                .and_then(|m| predict_finite(&m, io).map_err(|x| x.to_string()));
-            (e, pred)
-        })
-        .collect();
+    let refit = |&e: &EffectName| {
+        let c = base_cfg.with_effect(e);
+        let pred = c
+            .fit(io)
+            .map_err(|x| x.to_string())
+            .and_then(|m| predict_finite(&m, io).map_err(|x| x.to_string()));
+        (e, pred)
+    };
+    // a long record's fit keeps the threads busy alone: one at a time holds one fit's memory
+    let fitted: Vec<(EffectName, Prediction)> = if gram::fills_the_threads(n) {
+        candidates.iter().map(refit).collect()
+    } else {
+        candidates.par_iter().map(refit).collect()
+    };
     let m = held_out.len() as f64;
     // the model at hand's held-out error, per output
     let rms_model: Vec<f64> = io

@@ -261,12 +261,16 @@ impl GreyBoxConfig {
         self.check_record(&train)?;
         let input_names = rec.input_names();
         let u: Vec<&[f64]> = train.inputs.iter().map(|s| s.values.as_slice()).collect();
-        // the outputs are independent problems: fitted in parallel, collected in order (the
-        // same bits whatever the thread count)
-        let fitted: Vec<_> = (0..train.outputs.len())
-            .into_par_iter()
-            .map(|o| self.fit_output(&train, o, &u, &input_names))
-            .collect::<Result<_, _>>()?;
+        // the outputs are independent problems: fitted in parallel (one after the other on a
+        // record long enough to keep the threads busy alone: one output's memory at a time),
+        // collected in order (the same bits whatever the thread count)
+        let fit = |o: usize| self.fit_output(&train, o, &u, &input_names);
+        let outputs = 0..train.outputs.len();
+        let fitted: Vec<_> = if crate::numeric::gram::fills_the_threads(n_train) {
+            outputs.map(fit).collect::<Result<_, _>>()?
+        } else {
+            outputs.into_par_iter().map(fit).collect::<Result<_, _>>()?
+        };
         let (outputs, runs): (Vec<_>, Vec<_>) = fitted.into_iter().unzip();
         let spec = PlantSpec {
             name: "greybox".into(),

@@ -6,7 +6,7 @@
 //!
 //! Both steps work on normal equations accumulated by row blocks ([`crate::numeric::gram`]):
 //! the basis' Gram matrix for the linear step, Kaufman's `J^T J` for the nonlinear one, whose
-//! Jacobian is projected and multiplied block by block and never held whole. Only the passive
+//! projected Jacobian is formed and multiplied a block at a time. Only the passive
 //! set's filtered columns outlive an evaluation.
 //!
 //! What the model is made of comes from the effects ([`crate::effect::fitting`]): each path
@@ -534,9 +534,9 @@ impl<'a> OutputProblem<'a> {
     /// The normal equations `J^T J`, `J^T r` of Kaufman's Jacobian of the fitted output with
     /// respect to the parameters `free` (in that order): partial derivatives `D` at fixed
     /// linear coefficients, projected onto the orthogonal complement of the active regressors
-    /// `P`, `J = D - P A` with `A = (P^T P)^-1 P^T D` (the passive set's Cholesky factor).
-    /// Computed by row blocks ([`gram`]): `P^T D` in one pass, then `J` block by block with
-    /// its products in a second; `J` is never held whole. A derivative with a non-finite value
+    /// `P`, `J = D - P A` with `A = (P^T P + ridge)^-1 P^T D` (the passive set's Cholesky
+    /// factor). Computed by row blocks ([`gram`]): `P^T D` in one pass, then `J` block by block
+    /// with its products in a second (`D` is held whole, `J` only a block at a time). A derivative with a non-finite value
     /// is not projected and its non-finite values count as zero (as is every non-finite value
     /// of `J`).
     fn projected_normal_equations(
@@ -548,6 +548,11 @@ impl<'a> OutputProblem<'a> {
         let n = self.y.len();
         let p = free.len();
         let sol = &ev.sol;
+        debug_assert_eq!(
+            ev.passive_psi.len(),
+            sol.passive.len(),
+            "a released evaluation"
+        );
         let derivatives: Vec<(Vec<f64>, bool)> = self.with_derivative_jobs(th, &ev.coef, |jobs| {
             let mut by_param: Vec<Option<&JacobianJob<'_>>> = vec![None; self.layout.n_theta];
             for (q, job) in &jobs {
@@ -594,17 +599,29 @@ impl<'a> OutputProblem<'a> {
         }
         let r = ev.r.as_slice();
         let products = gram::sum_by_row_blocks(n, p, p + 1, |rows| {
-            let mut j = gram::block_of(&d, rows.clone());
-            if !passive.is_empty() {
-                j.gemm(-1.0, &gram::block_of(&passive, rows.clone()), &alpha, 1.0);
+            // [J | r] on the block: J = D - P A, the passive columns subtracted in order
+            let mut cols = d.clone();
+            cols.push(r);
+            let mut jr = gram::block_of(&cols, rows.clone());
+            let len = rows.len();
+            for (k, pk) in passive.iter().enumerate() {
+                let pk = &pk[rows.clone()];
+                for q in 0..p {
+                    let a = alpha[(k, q)];
+                    if a != 0.0 {
+                        let jq = &mut jr.as_mut_slice()[q * len..(q + 1) * len];
+                        for (v, x) in jq.iter_mut().zip(pk) {
+                            *v -= a * x;
+                        }
+                    }
+                }
             }
-            j.iter_mut()
+            jr.as_mut_slice()[..p * len]
+                .iter_mut()
                 .filter(|v| !v.is_finite())
                 .for_each(|v| *v = 0.0);
-            let mut jr = DMatrix::zeros(rows.len(), p + 1);
-            jr.columns_mut(0, p).copy_from(&j);
-            jr.column_mut(p).copy_from_slice(&r[rows]);
-            gram::tr_mul_block(&j, &jr)
+            let j = jr.columns(0, p).into_owned();
+            gram::tr_mul_block(&j, &jr, false)
         });
         let mut jtj = products.columns(0, p).into_owned();
         for i in 0..p {

@@ -1,17 +1,19 @@
 //! Cross products of long columns, `A^T B`, by row blocks.
 //!
 //! A fit's normal equations need the products of every pair of its basis columns. Taken one
-//! pair at a time (a dot product over the whole record), each product reads two columns from
-//! memory: on a long record, whose columns do not fit in the caches, the fit is then bound by
-//! memory traffic (m^2 / 2 column reads for m columns) and its time grows faster than the
-//! record. Here the record is cut into blocks of [`BLOCK_ROWS`] rows; each block's columns are
-//! copied into a small contiguous matrix and multiplied by a cache-blocked matrix product
-//! (`matrixmultiply`'s dgemm), so every column is read once per product.
+//! pair at a time over the whole record, each product reads two columns from memory: on a long
+//! record, whose columns do not fit in the caches, the fit is then bound by memory traffic
+//! (m^2 / 2 column reads for m columns) and its time grows faster than the record. Here the
+//! record is cut into blocks of [`BLOCK_ROWS`] rows; each block's columns are copied into a
+//! small contiguous matrix (which stays in the caches) and multiplied there, so every column is
+//! read from memory once per product.
 //!
-//! The blocks are fixed by the record's length alone, grouped into chunks of [`CHUNK_BLOCKS`]
-//! summed in order inside a chunk, and the chunks' sums are added in order: the result is the
-//! same whatever the thread count. (The order differs from a dot product over the whole record:
-//! the sums agree to rounding, not bit for bit.)
+//! Determinism: the blocks are fixed by the record's length alone, grouped into chunks of
+//! [`CHUNK_BLOCKS`] summed in order inside a chunk, and the chunks' sums are added in order;
+//! each block's products are [`dot`]s with a fixed eight-way split and reduction tree, in plain
+//! IEEE arithmetic. So the result is the same bits whatever the thread count and on every
+//! machine. (The order differs from a dot product over the whole record: the sums agree to
+//! rounding, not bit for bit.)
 
 use nalgebra::DMatrix;
 use rayon::prelude::*;
@@ -22,6 +24,14 @@ pub const BLOCK_ROWS: usize = 4096;
 
 /// Blocks summed in order by one task (a task is the unit of parallel work).
 pub const CHUNK_BLOCKS: usize = 16;
+
+/// Whether a product over `n` rows keeps every thread of the pool busy by itself (a chunk of
+/// blocks per thread at least). Callers that could run several such products side by side (one
+/// fit per candidate effect, per output) run them one after the other instead: the same time,
+/// a fraction of the memory, and the same bits either way.
+pub fn fills_the_threads(n: usize) -> bool {
+    n >= BLOCK_ROWS * CHUNK_BLOCKS * rayon::current_num_threads()
+}
 
 /// The sum over the record's row blocks of `block(rows)`, each an `r x c` matrix: blocks summed
 /// in order within fixed chunks, chunks in parallel, their sums added in order.
@@ -60,37 +70,93 @@ pub fn block_of(cols: &[&[f64]], rows: Range<usize>) -> DMatrix<f64> {
     DMatrix::from_vec(len, cols.len(), data)
 }
 
-/// `A^T B` of two blocks with the same rows: one matrix product (`matrixmultiply`'s dgemm,
-/// reading `a` through transposed strides, no copy).
-pub fn tr_mul_block(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
+/// Dot product with eight partial sums in a fixed order (the compiler vectorises it; plain
+/// IEEE arithmetic, no fused multiply-add: the same bits on every machine).
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut acc = [0.0f64; 8];
+    let ca = a.chunks_exact(8);
+    let cb = b.chunks_exact(8);
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for i in 0..8 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    let mut s = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
+    for (x, y) in ra.iter().zip(rb) {
+        s += x * y;
+    }
+    s
+}
+
+/// [`dot`] of `a` with each of four columns of `a`'s length, side by side (the same bits as four
+/// calls of [`dot`]).
+fn dot4(a: &[f64], b: [&[f64]; 4]) -> [f64; 4] {
+    let n = a.len();
+    let b = b.map(|c| &c[..n]);
+    let mut acc = [[0.0f64; 8]; 4];
+    let full = n - n % 8;
+    for s in (0..full).step_by(8) {
+        let x = &a[s..s + 8];
+        for (acc, c) in acc.iter_mut().zip(&b) {
+            let y = &c[s..s + 8];
+            for i in 0..8 {
+                acc[i] += x[i] * y[i];
+            }
+        }
+    }
+    let mut out = [0.0; 4];
+    for ((o, acc), c) in out.iter_mut().zip(&acc).zip(&b) {
+        let mut s =
+            ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
+        for (x, y) in a[full..].iter().zip(&c[full..]) {
+            s += x * y;
+        }
+        *o = s;
+    }
+    out
+}
+
+/// `A^T B` of two blocks with the same rows (column-major: each column contiguous), one dot
+/// product per pair of columns on the block (in the caches); only the upper triangle when `b`
+/// is `a` itself and `symmetric` is set (the rest left zero).
+pub fn tr_mul_block(a: &DMatrix<f64>, b: &DMatrix<f64>, symmetric: bool) -> DMatrix<f64> {
     let (rows, k) = a.shape();
     let c = b.ncols();
     assert_eq!(b.nrows(), rows, "blocks of different rows");
     let mut out = DMatrix::zeros(k, c);
-    if rows == 0 || k == 0 || c == 0 {
+    if rows == 0 {
         return out;
     }
-    let (rows_i, k_i) = (rows as isize, k as isize);
-    // SAFETY: a is rows x k and b rows x c, column-major and contiguous; A^T (k x rows) is read
-    // with row stride `rows` and column stride 1, B with (1, rows), and out (k x c,
-    // column-major) written with (1, k): every index stays inside its buffer.
-    unsafe {
-        matrixmultiply::dgemm(
-            k,
-            rows,
-            c,
-            1.0,
-            a.as_ptr(),
-            rows_i,
-            1,
-            b.as_ptr(),
-            1,
-            rows_i,
-            0.0,
-            out.as_mut_ptr(),
-            1,
-            k_i,
-        );
+    let (a, b) = (a.as_slice(), b.as_slice());
+    fn col(m: &[f64], rows: usize, j: usize) -> &[f64] {
+        &m[j * rows..(j + 1) * rows]
+    }
+    for i in 0..k {
+        let ai = col(a, rows, i);
+        let mut j = if symmetric { i.min(c) } else { 0 };
+        // four columns of `b` against one of `a`: the column of `a` is loaded once for four
+        // products (each product's arithmetic is that of `dot`)
+        while j + 4 <= c {
+            let d = dot4(
+                ai,
+                [
+                    col(b, rows, j),
+                    col(b, rows, j + 1),
+                    col(b, rows, j + 2),
+                    col(b, rows, j + 3),
+                ],
+            );
+            for (l, v) in d.into_iter().enumerate() {
+                out[(i, j + l)] = v;
+            }
+            j += 4;
+        }
+        for j in j..c {
+            out[(i, j)] = dot(ai, col(b, rows, j));
+        }
     }
     out
 }
@@ -100,7 +166,7 @@ pub fn cross_products(a: &[&[f64]], b: &[&[f64]]) -> DMatrix<f64> {
     let n = a.first().or(b.first()).map_or(0, |c| c.len());
     debug_assert!(a.iter().chain(b).all(|c| c.len() == n));
     sum_by_row_blocks(n, a.len(), b.len(), |rows| {
-        tr_mul_block(&block_of(a, rows.clone()), &block_of(b, rows))
+        tr_mul_block(&block_of(a, rows.clone()), &block_of(b, rows), false)
     })
 }
 
@@ -108,10 +174,11 @@ pub fn cross_products(a: &[&[f64]], b: &[&[f64]]) -> DMatrix<f64> {
 /// symmetric).
 pub fn gram(a: &[&[f64]]) -> DMatrix<f64> {
     let n = a.first().map_or(0, |c| c.len());
+    debug_assert!(a.iter().all(|c| c.len() == n));
     let k = a.len();
     let mut g = sum_by_row_blocks(n, k, k, |rows| {
         let x = block_of(a, rows);
-        tr_mul_block(&x, &x)
+        tr_mul_block(&x, &x, true)
     });
     for i in 0..k {
         for j in 0..i {
@@ -165,6 +232,15 @@ mod tests {
                 "n = {n}"
             );
             assert_eq!(g, g.transpose());
+        }
+    }
+
+    #[test]
+    fn four_products_side_by_side_are_four_dot_products() {
+        let c = columns(5, 8 * 9 + 5);
+        let d = dot4(&c[0], [&c[1], &c[2], &c[3], &c[4]]);
+        for l in 0..4 {
+            assert_eq!(d[l].to_bits(), dot(&c[0], &c[l + 1]).to_bits());
         }
     }
 
