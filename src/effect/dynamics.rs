@@ -559,7 +559,7 @@ mod tests {
             panic!("a valid filter")
         };
         // six columns (a group of four, then two alone), one of another length
-        let mut cols: Vec<Vec<f64>> = (0..6)
+        let cols: Vec<Vec<f64>> = (0..6)
             .map(|j| {
                 let n = if j == 2 { 700 } else { 1000 };
                 (0..n)
@@ -567,30 +567,25 @@ mod tests {
                     .collect()
             })
             .collect();
-        let alone: Vec<Vec<f64>> = cols
-            .iter()
-            .map(|c| {
-                let mut c = c.clone();
-                f(&mut [c.as_mut_slice()]);
-                c
-            })
-            .collect();
-        let mut slices: Vec<&mut [f64]> = cols.iter_mut().map(Vec::as_mut_slice).collect();
-        f(&mut slices);
-        assert_eq!(cols, alone);
-        // and the same columns of one length take the four-wide path
-        let mut same: Vec<Vec<f64>> = [0, 1, 3, 4, 5].map(|j| alone[j].clone()).to_vec();
-        let want: Vec<Vec<f64>> = same
-            .iter()
-            .map(|c| {
-                let mut c = c.clone();
-                f(&mut [c.as_mut_slice()]);
-                c
-            })
-            .collect();
-        let mut slices: Vec<&mut [f64]> = same.iter_mut().map(Vec::as_mut_slice).collect();
-        f(&mut slices);
-        assert_eq!(same, want);
+        let each_alone = |cols: &[Vec<f64>]| -> Vec<Vec<f64>> {
+            cols.iter()
+                .map(|c| {
+                    let mut c = c.clone();
+                    f(&mut [c.as_mut_slice()]);
+                    c
+                })
+                .collect()
+        };
+        let together = |mut cols: Vec<Vec<f64>>| -> Vec<Vec<f64>> {
+            let mut slices: Vec<&mut [f64]> = cols.iter_mut().map(Vec::as_mut_slice).collect();
+            f(&mut slices);
+            cols
+        };
+        let alone = each_alone(&cols);
+        assert_eq!(together(cols), alone);
+        // and five distinct columns of one length: a group of four takes the four-wide path
+        let same: Vec<Vec<f64>> = [0, 1, 3, 4, 5].map(|j| alone[j].clone()).to_vec();
+        assert_eq!(together(same.clone()), each_alone(&same));
     }
 
     #[test]

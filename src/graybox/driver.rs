@@ -702,6 +702,35 @@ mod tests {
         }
     }
 
+    /// The problem of output `y1` of `rec` with `effects` (5 plays), and a point away from
+    /// zero in every parameter (creep gains, B, Gamma, f_n, zeta).
+    fn problem_at<'a>(
+        rec: &'a IoRecord,
+        effects: &str,
+        held_out: Option<std::ops::Range<usize>>,
+    ) -> (OutputProblem<'a>, Vec<f64>) {
+        let mut cfg = GreyBoxConfig::from_effect_list(effects).unwrap();
+        cfg.options.plays = 5;
+        cfg.check_record(rec).unwrap();
+        let u: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
+        let st = cfg.structure(rec, 0).unwrap();
+        let prob = OutputProblem::new(
+            "y1",
+            &rec.outputs[0].values,
+            u,
+            rec.input_names(),
+            rec.ts,
+            &st,
+            cfg.options.plays,
+            held_out,
+        );
+        let mut th = prob.initial(&prob, 1).remove(0);
+        for (i, t) in th.iter_mut().enumerate() {
+            *t += 0.05 + 0.01 * i as f64;
+        }
+        (prob, th)
+    }
+
     /// Kaufman's normal equations accumulated by row blocks (over several chunks of blocks,
     /// with a held-out stretch) agree with the same equations from every derivative projected
     /// on its own over the whole record.
@@ -713,24 +742,7 @@ mod tests {
         ] {
             let n = 3 * crate::numeric::gram::BLOCK_ROWS * crate::numeric::gram::CHUNK_BLOCKS / 2;
             let rec = record(1, n);
-            let mut cfg = GreyBoxConfig::from_effect_list(effects).unwrap();
-            cfg.options.plays = 5;
-            let u: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
-            let st = cfg.structure(&rec, 0).unwrap();
-            let prob = OutputProblem::new(
-                "y1",
-                &rec.outputs[0].values,
-                u,
-                rec.input_names(),
-                rec.ts,
-                &st,
-                cfg.options.plays,
-                Some(n / 3..n / 2),
-            );
-            let mut th = prob.initial(&prob, 1).remove(0);
-            for (i, t) in th.iter_mut().enumerate() {
-                *t += 0.05 + 0.01 * i as f64;
-            }
+            let (prob, th) = problem_at(&rec, effects, Some(n / 3..n / 2));
             let ev = prob.eval(&th, true).expect("a finite model");
             let free: Vec<usize> = (0..prob.n_theta()).rev().collect();
             let (a, b) = prob.block_normal_equations(&th, &ev, &free);
@@ -764,27 +776,8 @@ mod tests {
         ];
         for (m, effects) in cases {
             let rec = record(m, 20_000);
-            let mut cfg = GreyBoxConfig::from_effect_list(effects).unwrap();
-            cfg.options.plays = 5;
-            cfg.check_record(&rec).unwrap();
-            let u: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
-            let st = cfg.structure(&rec, 0).unwrap();
-            let prob = OutputProblem::new(
-                "y1",
-                &rec.outputs[0].values,
-                u,
-                rec.input_names(),
-                rec.ts,
-                &st,
-                cfg.options.plays,
-                None,
-            );
+            let (prob, th) = problem_at(&rec, effects, None);
             assert!(prob.n_theta() > 0, "{effects}");
-            // a point away from zero in every parameter (creep gains, B, Gamma, f_n, zeta)
-            let mut th = prob.initial(&prob, 1).remove(0);
-            for (i, t) in th.iter_mut().enumerate() {
-                *t += 0.05 + 0.01 * i as f64;
-            }
             let ev = prob.eval(&th, true).expect("a finite model");
             let analytic = prob.derivatives(&th, &ev.coef);
             assert_eq!(analytic.len(), prob.n_theta(), "{effects}");
