@@ -745,7 +745,7 @@ mod tests {
             let (prob, th) = problem_at(&rec, effects, Some(n / 3..n / 2));
             let ev = prob.eval(&th, true).expect("a finite model");
             let free: Vec<usize> = (0..prob.n_theta()).rev().collect();
-            let (a, b) = prob.block_normal_equations(&th, &ev, &free);
+            let (a, b) = prob.projected_normal_equations(&th, &ev, &free);
             let (a0, b0) = prob.dense_normal_equations(&th, &ev, &free);
             let rel = |x: f64, y: f64, scale: f64| (x - y).abs() / scale.max(1e-300);
             let sa = a0.abs().max();

@@ -536,10 +536,11 @@ impl<'a> OutputProblem<'a> {
     /// linear coefficients, projected onto the orthogonal complement of the active regressors
     /// `P`, `J = D - P A` with `A = (P^T P + ridge)^-1 P^T D` (the passive set's Cholesky
     /// factor). Computed by row blocks ([`gram`]): `P^T D` in one pass, then `J` block by block
-    /// with its products in a second (`D` is held whole, `J` only a block at a time). A derivative with a non-finite value
-    /// is not projected and its non-finite values count as zero (as is every non-finite value
-    /// of `J`).
-    fn projected_normal_equations(
+    /// with its products in a second (`D` is held whole, `J` only a block at a time). A
+    /// derivative with a non-finite value is not projected and its non-finite values count as
+    /// zero (as is every non-finite value of `J`). `J^T J` is exactly symmetric: each of its
+    /// entries is a [`gram::dot`], whose products commute.
+    pub(crate) fn projected_normal_equations(
         &self,
         th: &[f64],
         ev: &Eval,
@@ -623,13 +624,10 @@ impl<'a> OutputProblem<'a> {
             let j = jr.columns(0, p).into_owned();
             gram::tr_mul_block(&j, &jr, false)
         });
-        let mut jtj = products.columns(0, p).into_owned();
-        for i in 0..p {
-            for k in 0..i {
-                jtj[(i, k)] = jtj[(k, i)];
-            }
-        }
-        (jtj, products.column(p).into_owned())
+        (
+            products.columns(0, p).into_owned(),
+            products.column(p).into_owned(),
+        )
     }
 
     /// [`OutputProblem::projected_normal_equations`] the plain way (the test's reference):
@@ -670,17 +668,6 @@ impl<'a> OutputProblem<'a> {
             DMatrix::from_fn(p, p, |a, b| sum(&j[a], &j[b])),
             DVector::from_fn(p, |a, _| sum(&j[a], &ev.r)),
         )
-    }
-
-    /// The block-wise normal equations, for the tests.
-    #[cfg(test)]
-    pub(crate) fn block_normal_equations(
-        &self,
-        th: &[f64],
-        ev: &Eval,
-        free: &[usize],
-    ) -> (DMatrix<f64>, DVector<f64>) {
-        self.projected_normal_equations(th, ev, free)
     }
 
     /// The model's output at parameters `th` and linear coefficients `coef` (held fixed).
