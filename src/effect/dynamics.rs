@@ -386,6 +386,9 @@ impl FilterFit for DynamicsFilter {
     fn off_when_static(&self) -> bool {
         true
     }
+    fn at_static_edge(&self, th: &[f64]) -> bool {
+        self.dynamics(th).natural_frequency_hz * self.ts > 0.25
+    }
     fn prepare(&self, th: &[f64]) -> Prepared {
         prepared(&self.dynamics(th), self.ts)
     }

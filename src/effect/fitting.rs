@@ -61,6 +61,11 @@ pub struct PreviousPath {
     pub spec: std::sync::Arc<dyn super::EffectSpec>,
 }
 
+/// The name of a term's parameters that only a second stage has (the first stage's operator
+/// weights that it refits, say): they start at 0 from the first stage's fit
+/// (`OutputProblem::theta_with_new`).
+pub const SECOND_STAGE_PARAM: &str = "second_stage";
+
 /// What a path term is built from.
 #[derive(Debug, Clone)]
 pub struct PathSetup<'a> {
@@ -178,6 +183,13 @@ pub trait FilterFit: Send + Sync {
     }
     /// Left out of the static model of the initialisation.
     fn off_when_static(&self) -> bool {
+        false
+    }
+    /// At parameters `th`, as close to no filter as this filter gets without being the
+    /// identity (dynamics: a mode above a quarter of the sampling rate, where its response
+    /// cannot be told from a sample's delay): the fit then also tries the output without the
+    /// filters that [`FilterFit::off_when_static`].
+    fn at_static_edge(&self, _th: &[f64]) -> bool {
         false
     }
     /// The filter at parameters `th` (this filter's slice).

@@ -153,6 +153,31 @@ pub(crate) struct OutputStructure {
     pub parsimonious: bool,
 }
 
+impl OutputStructure {
+    /// The structure without the filters that the static model of the initialisation leaves
+    /// out ([`FilterFit::off_when_static`]: dynamics), for `samples` samples at `ts`; `None`
+    /// when it has none. Such a filter cannot become the identity (a sampled mode delays the
+    /// output by a sample at least): an output without it is fitted both ways.
+    pub fn without_static_off_filters(&self, samples: usize, ts: f64) -> Option<Self> {
+        let off = |c: &Chosen| {
+            c.effect
+                .filter(&OutputSetup {
+                    samples,
+                    ts,
+                    variant: c.variant,
+                    parsimonious: self.parsimonious,
+                })
+                .is_some_and(|f| f.off_when_static())
+        };
+        if !self.filters.iter().any(off) {
+            return None;
+        }
+        let mut st = self.clone();
+        st.filters.retain(|c| !off(c));
+        Some(st)
+    }
+}
+
 /// Linear least squares of y on the columns (free coefficients), by the normal equations.
 fn least_squares(cols: &[&[f64]], y: &[f64]) -> Vec<f64> {
     let (g, b) = normal_equations(cols, y);
@@ -792,6 +817,64 @@ impl<'a> OutputProblem<'a> {
             }
         }
         t
+    }
+
+    /// This problem's parameters from `th`, the parameters of the same problem without the
+    /// terms' parameters named `new` (a second stage's added parameters), which start at 0.
+    /// `None` when `th` does not have the length that this takes.
+    pub fn theta_with_new(&self, th: &[f64], new: &str) -> Option<Vec<f64>> {
+        let mut t = vec![0.0; self.layout.n_theta];
+        let mut from = 0;
+        for f in &self.layout.filters {
+            t.get_mut(f.params.clone())?
+                .copy_from_slice(th.get(f.params.clone())?);
+            from = from.max(f.params.end);
+        }
+        let mut terms: Vec<&PlacedTerm> = self
+            .layout
+            .paths
+            .iter()
+            .flat_map(|p| &p.terms)
+            .chain(&self.layout.output_terms)
+            .collect();
+        terms.sort_by_key(|t| t.params.start);
+        for term in terms {
+            let names = term.term.param_names();
+            for (k, at) in term.params.clone().enumerate() {
+                if names.get(k) != Some(&new) {
+                    t[at] = *th.get(from)?;
+                    from += 1;
+                }
+            }
+        }
+        (from == th.len()).then_some(t)
+    }
+
+    /// Whether a filter is at its static edge at `th` ([`FilterFit::at_static_edge`]).
+    pub fn at_static_edge(&self, th: &[f64]) -> bool {
+        self.layout
+            .filters
+            .iter()
+            .any(|f| f.filter.at_static_edge(&th[f.params.clone()]))
+    }
+
+    /// Every parameter free but the terms' parameters named `name`.
+    pub fn free_except(&self, name: &str) -> Vec<bool> {
+        let mut free = vec![true; self.layout.n_theta];
+        for term in self
+            .layout
+            .paths
+            .iter()
+            .flat_map(|p| &p.terms)
+            .chain(&self.layout.output_terms)
+        {
+            for (k, at) in term.params.clone().enumerate() {
+                if term.term.param_names().get(k) == Some(&name) {
+                    free[at] = false;
+                }
+            }
+        }
+        free
     }
 
     /// Which parameters are free in the first Levenberg-Marquardt stage (the filters that are
