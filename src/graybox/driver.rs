@@ -949,6 +949,52 @@ mod tests {
         }
     }
 
+    /// `dynamics` on a 2-DoF record whose first output has no mode (static, under the steps
+    /// at the ends of the inputs' holds) and whose second has one: the first output's mode
+    /// runs to the top of its band, so that output is fitted without it and reaches the
+    /// (noiseless) data; the second keeps its mode near the true one.
+    #[test]
+    fn an_output_without_a_mode_is_fitted_without_dynamics() {
+        use crate::effect::dynamics::DynamicsSpec;
+        use crate::effect::Operator;
+        let mut rec = record(2, 6000);
+        let mode = DynamicsSpec {
+            natural_frequency_hz: 40.0,
+            damping_ratio: 0.1,
+            dc_gain: 1.0,
+        }
+        .check()
+        .unwrap();
+        let mut op = mode.operator(rec.ts).unwrap();
+        for v in rec.outputs[1].values.iter_mut() {
+            *v = op.step(*v);
+        }
+        let fitted = GreyBoxConfig::from_effect_list("hysteresis,dynamics,coupling")
+            .unwrap()
+            .fit(&rec)
+            .expect("a fit");
+        let spec = serde_json::to_value(&fitted.plant.spec).unwrap();
+        let outs = spec["outputs"].as_array().unwrap();
+        assert!(outs[0].get("dynamics").is_none(), "{}", outs[0]);
+        let f = outs[1]["dynamics"]["natural_frequency_hz"]
+            .as_f64()
+            .unwrap();
+        assert!((f - 40.0).abs() < 2.0, "{f}");
+        let range = |o: usize| {
+            let v = &rec.outputs[o].values;
+            v.iter().cloned().fold(f64::MIN, f64::max) - v.iter().cloned().fold(f64::MAX, f64::min)
+        };
+        for (o, out) in fitted.fit.outputs.iter().enumerate() {
+            assert!(
+                out.rmse < 3e-3 * range(o),
+                "{}: {} of {}",
+                out.name,
+                out.rmse,
+                range(o)
+            );
+        }
+    }
+
     /// A cross input that never goes up and down (a rising staircase) cannot show a loop: its
     /// path is fitted linear, the other input's path keeps its hysteresis; a record where no
     /// input reverses is still refused.
