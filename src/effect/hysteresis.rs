@@ -483,8 +483,9 @@ pub fn output_map_knot_fractions(k: usize) -> Vec<f64> {
 /// Knots per side of the dead-zone map beside `plays` plays: 15 with 39 plays, 7 with 19, 3
 /// with fewer (a short record's parsimonious model). A saturating loop's slope changes at
 /// thresholds the fit does not know; a piecewise-linear map with more knots follows it closer
-/// (on a 20,000-sample saturating Prandtl-Ishlinskii record with 0.4 % noise, 3, 7 and 15
-/// knots per side left 5, 2.2 and 1.3 times the noise).
+/// (a prototype of the joint fit on a 20,000-sample saturating Prandtl-Ishlinskii record of
+/// the development zoo, noise 0.08 % of the range: 3, 7 and 15 knots per side left 5, 2.2 and
+/// 1.3 times the noise).
 pub fn output_map_knots(plays: usize) -> usize {
     match plays {
         0..=9 => 3,

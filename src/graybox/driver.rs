@@ -895,8 +895,8 @@ mod tests {
 
     /// The second stage of the two-stage fit (Kuhnen's dead zones on a first stage's
     /// Prandtl-Ishlinskii operator, whose weights and input map are refitted beside the
-    /// dynamics and creep): its derivatives match central differences, and at zero added
-    /// parameters its model is the first stage's operator through the dead-zone map.
+    /// dynamics and creep): one added parameter per operator weight, and its derivatives match
+    /// central differences.
     #[test]
     fn the_second_stage_derivatives_match_central_differences() {
         use crate::effect::hysteresis::HysteresisSpec;

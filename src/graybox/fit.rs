@@ -89,6 +89,16 @@ struct Layout<'a> {
     n_theta: usize,
 }
 
+impl<'a> Layout<'a> {
+    /// Every term: the paths' in order, then the output terms.
+    fn terms(&self) -> impl Iterator<Item = &PlacedTerm<'a>> {
+        self.paths
+            .iter()
+            .flat_map(|p| &p.terms)
+            .chain(&self.output_terms)
+    }
+}
+
 /// Everything needed to evaluate the model of one output for a parameter vector.
 pub(crate) struct OutputProblem<'a> {
     pub name: String,
@@ -830,13 +840,7 @@ impl<'a> OutputProblem<'a> {
                 .copy_from_slice(th.get(f.params.clone())?);
             from = from.max(f.params.end);
         }
-        let mut terms: Vec<&PlacedTerm> = self
-            .layout
-            .paths
-            .iter()
-            .flat_map(|p| &p.terms)
-            .chain(&self.layout.output_terms)
-            .collect();
+        let mut terms: Vec<&PlacedTerm> = self.layout.terms().collect();
         terms.sort_by_key(|t| t.params.start);
         for term in terms {
             let names = term.term.param_names();
@@ -861,15 +865,10 @@ impl<'a> OutputProblem<'a> {
     /// Every parameter free but the terms' parameters named `name`.
     pub fn free_except(&self, name: &str) -> Vec<bool> {
         let mut free = vec![true; self.layout.n_theta];
-        for term in self
-            .layout
-            .paths
-            .iter()
-            .flat_map(|p| &p.terms)
-            .chain(&self.layout.output_terms)
-        {
+        for term in self.layout.terms() {
+            let names = term.term.param_names();
             for (k, at) in term.params.clone().enumerate() {
-                if term.term.param_names().get(k) == Some(&name) {
+                if names.get(k) == Some(&name) {
                     free[at] = false;
                 }
             }
