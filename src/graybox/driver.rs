@@ -466,8 +466,9 @@ impl GreyBoxConfig {
     /// fitted one, and for the default operator also the plain one fitted alone) run over
     /// its input, and the paths' terms rebuilt on those outputs (for the Prandtl-Ishlinskii
     /// paths, Kuhnen's dead-zone superposition of the fitted operator's output: saturating and
-    /// asymmetric loops), refitted from the first stage's parameters. Kept when its cost is
-    /// clearly lower ([`OUTPUT_MAP_GAIN`]) and its operators are valid.
+    /// asymmetric loops), refitted from the first stage's parameters. It goes past its first,
+    /// cheap step only where that step pays ([`SECOND_STAGE_HELD_GAIN`]); kept when its cost
+    /// is clearly lower ([`OUTPUT_MAP_GAIN`]) and its operators are valid.
     #[allow(clippy::too_many_arguments)]
     fn output_map_stage<'a>(
         &self,
@@ -479,9 +480,41 @@ impl GreyBoxConfig {
         ts: f64,
         problem: &dyn Fn(&OutputStructure, usize) -> OutputProblem<'a>,
     ) -> Option<(crate::plant::OutputSpec, LmResult)> {
-        // first stages: the fit itself, and for the default operator the plain one (plays
-        // alone: an input map or a Bouc-Wen term takes some of the loop's shape that the dead
-        // zones should take)
+        let trace = std::env::var_os("HYSTBENCH_TRACE").is_some();
+        // the second stage from a first stage with the operators' weights held
+        let held_from =
+            |first: &crate::plant::OutputSpec| -> Option<(OutputProblem<'a>, LmResult)> {
+                let previous: Vec<Option<PreviousPath>> = st
+                    .paths
+                    .iter()
+                    .map(|&j| first_stage_path(first, &names[j], u[j], ts))
+                    .collect();
+                if previous.iter().all(Option::is_none) {
+                    return None;
+                }
+                let mut st2 = st.clone();
+                st2.previous = previous;
+                let prob2 = problem(&st2, self.options.plays);
+                let theta2 = prob2.theta_with_new(&res.theta, SECOND_STAGE_PARAM)?;
+                let free = prob2.free_except(SECOND_STAGE_PARAM);
+                let r2 = levenberg_marquardt(&prob2, theta2, &free, &self.options).ok()?;
+                if trace {
+                    eprintln!(
+                        "output map stage, operator held: cost {:.6e} -> {:.6e}",
+                        res.eval.cost, r2.eval.cost
+                    );
+                }
+                Some((prob2, r2))
+            };
+        // the dead zones on the fit's own operator, its weights held: the cheap test of
+        // whether the output depends on the operator's output statically; the rest of the
+        // stage (a second first stage, the weights refitted) only where it does
+        let mut held = held_from(spec)?;
+        if held.1.eval.cost > SECOND_STAGE_HELD_GAIN * res.eval.cost {
+            return None;
+        }
+        // for the default operator, the plain one too (plays alone: an input map or a
+        // Bouc-Wen term takes some of the loop's shape that the dead zones should take)
         let hysteresis = crate::effect::hysteresis::NAME;
         let mut st_pi = st.clone();
         let mut plain = false;
@@ -491,54 +524,28 @@ impl GreyBoxConfig {
                 plain = true;
             }
         }
-        let mut firsts = vec![spec.clone()];
         if plain {
             let prob_pi = problem(&st_pi, self.options.plays);
             let coarse = problem(&st_pi, self.options.plays.min(3));
             if let Ok(r) = fit_problem(&prob_pi, coarse, Vec::new(), &self.options) {
-                firsts.push(prob_pi.output_spec(&r.theta, &r.eval.coef));
+                let first = prob_pi.output_spec(&r.theta, &r.eval.coef);
+                if let Some(h) = held_from(&first) {
+                    if h.1.eval.cost < held.1.eval.cost {
+                        held = h;
+                    }
+                }
             }
         }
-        // the second stage from each first stage with the operators' weights held, then the
-        // best one with them free (the weights that the first stage fitted to the output
-        // itself, refitted under the dead zones)
-        let trace = std::env::var_os("HYSTBENCH_TRACE").is_some();
-        let mut held: Option<(OutputProblem<'a>, LmResult)> = None;
-        for first in &firsts {
-            let previous: Vec<Option<PreviousPath>> = st
-                .paths
-                .iter()
-                .map(|&j| first_stage_path(first, &names[j], u[j], ts))
-                .collect();
-            if previous.iter().all(Option::is_none) {
-                continue;
-            }
-            let mut st2 = st.clone();
-            st2.previous = previous;
-            let prob2 = problem(&st2, self.options.plays);
-            let Some(theta2) = prob2.theta_with_new(&res.theta, SECOND_STAGE_PARAM) else {
-                continue;
-            };
-            let free = prob2.free_except(SECOND_STAGE_PARAM);
-            let Ok(r2) = levenberg_marquardt(&prob2, theta2, &free, &self.options) else {
-                continue;
-            };
-            if trace {
-                eprintln!(
-                    "output map stage, operator held: cost {:.6e} -> {:.6e}",
-                    res.eval.cost, r2.eval.cost
-                );
-            }
-            if held.as_ref().is_none_or(|h| r2.eval.cost < h.1.eval.cost) {
-                held = Some((prob2, r2));
-            }
-        }
-        let (prob2, r_held) = held?;
+        // then the best one with the weights free (the weights that the first stage fitted
+        // to the output itself, refitted under the dead zones)
+        let (prob2, r_held) = held;
         let all = vec![true; prob2.n_theta()];
         let t_stage = Instant::now();
         // a budget of its own, spent only where it pays: a few iterations first, and the
-        // rest when they lowered the cost clearly (on most loops the weights barely move; a
-        // slow tail, where S's slopes and the weights trade scale, is not worth the time)
+        // rest when those lowered the cost clearly and already cleared the bar that the stage
+        // must clear to be kept (the rest polishes, it does not decide: on the zoo its slow
+        // tail, where S's slopes and the weights trade scale, moved the cost by 2 % of the
+        // first stage's at most)
         let budget = |iterations: usize| FitOptions {
             max_iterations: iterations.min(self.options.max_iterations),
             ..self.options.clone()
@@ -551,7 +558,16 @@ impl GreyBoxConfig {
         )
         .ok();
         if let Some(r) = &joint {
-            if !r.converged && r.eval.cost < SECOND_STAGE_PROBE_GAIN * r_held.eval.cost {
+            if trace {
+                eprintln!(
+                    "output map stage, probe: cost {:.6e} -> {:.6e} (first stage {:.6e})",
+                    r_held.eval.cost, r.eval.cost, res.eval.cost
+                );
+            }
+            if !r.converged
+                && r.eval.cost < SECOND_STAGE_PROBE_GAIN * r_held.eval.cost
+                && r.eval.cost <= OUTPUT_MAP_GAIN * res.eval.cost
+            {
                 let rest = SECOND_STAGE_ITERATIONS - SECOND_STAGE_PROBE;
                 if let Ok(mut more) =
                     levenberg_marquardt(&prob2, r.theta.clone(), &all, &budget(rest))
@@ -612,11 +628,20 @@ impl GreyBoxConfig {
 pub const SECOND_STAGE_ITERATIONS: usize = 40;
 
 /// The first iterations of that stage; it goes on only when they brought the cost below
-/// [`SECOND_STAGE_PROBE_GAIN`] of where it started.
+/// [`SECOND_STAGE_PROBE_GAIN`] of where it started and below the bar of [`OUTPUT_MAP_GAIN`].
 pub const SECOND_STAGE_PROBE: usize = 8;
 
 /// See [`SECOND_STAGE_PROBE`] (0.9 of the cost: 5 % of the RMS error).
 pub const SECOND_STAGE_PROBE_GAIN: f64 = 0.9;
+
+/// The second stage goes on past its cheap first step (the dead zones on the first stage's
+/// operator, its weights held) only when that step lowers the cost below this share of the
+/// first stage's (1 % of the RMS error). On the development zoo (seed 8, the 41 complete
+/// 1-DoF fits), that step took 3.6-37 % off the cost where the stage was kept in the end, and
+/// where it took less than 2 % (25 of the 41) the stage was never kept; the rest of the stage
+/// (a second first stage and the weights' refit) is half the time of a fit with hysteresis
+/// on 20,000 samples.
+pub const SECOND_STAGE_HELD_GAIN: f64 = 0.98;
 
 /// Refits of a model with a sensor after the first (the censored samples where the model
 /// stays inside the limit rejoin the fit).
