@@ -19,7 +19,7 @@
 //! ```
 
 use crate::data::IoRecord;
-use crate::diagnose::{diagnose_model, DiagnoseOptions};
+use crate::diagnose::{diagnose_model, DiagnoseOptions, Diagnosis};
 use crate::effect::EffectName;
 use crate::graybox::{FittedGreyBox, GreyBoxConfig, GreyBoxError};
 use crate::model::{plant_effects, predict_finite, Model, ModelError};
@@ -205,6 +205,7 @@ fn refit_candidates(
     candidates: &[EffectName],
     io: &IoRecord,
     from: usize,
+    known: &[KnownFit],
     progress: &mut dyn FnMut(Progress),
 ) -> Result<(Option<Best>, Tried), ImproveError> {
     let mut best: Option<Best> = None;
@@ -212,9 +213,13 @@ fn refit_candidates(
     for &effect in candidates {
         let trial = config.with_effect(effect);
         progress(Progress::Fitting(&trial.effect_list()));
+        let made = known
+            .iter()
+            .find(|k| k.config == trial)
+            .map(|k| k.fitted.clone());
         // a candidate the record cannot support (too short for its time constants, say) is
         // left out; the error when none can be fitted
-        let fitted = match trial.fit(io) {
+        let fitted = match made.map_or_else(|| trial.fit(io), Ok) {
             Ok(f) => f,
             Err(e) if candidates.len() > 1 => {
                 progress(Progress::Skipped(&trial.effect_list(), &e));
@@ -234,10 +239,35 @@ fn refit_candidates(
 /// Run the loop from `model` (whose structure `config` reproduces, see [`start_config`]) on
 /// the record `io` (the model's inputs and outputs).
 pub fn improve(
+    model: Box<dyn Model>,
+    config: GreyBoxConfig,
+    io: &IoRecord,
+    opts: &ImproveOptions,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Ladder, ImproveError> {
+    improve_with_fits(model, config, io, opts, &[], progress)
+}
+
+/// A fit already made on the record that [`improve_with_fits`] runs on, and its diagnosis
+/// (made with the same [`DiagnoseOptions`]) when there is one.
+#[derive(Debug, Clone)]
+pub struct KnownFit {
+    pub config: GreyBoxConfig,
+    pub fitted: FittedGreyBox,
+    pub diagnosis: Option<Diagnosis>,
+}
+
+/// [`improve`] with fits already made on the same record `io`: a candidate whose
+/// configuration equals one of `known` (options included) takes that fit, and after it that
+/// diagnosis, instead of fitting and diagnosing again. Fit and diagnosis are deterministic,
+/// so the ladder is the same as without them (the zoo's loop passes the complete model it has
+/// fitted and diagnosed already).
+pub fn improve_with_fits(
     mut model: Box<dyn Model>,
     mut config: GreyBoxConfig,
     io: &IoRecord,
     opts: &ImproveOptions,
+    known: &[KnownFit],
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Ladder, ImproveError> {
     opts.check()?;
@@ -257,7 +287,13 @@ pub fn improve(
     for step in 0..=opts.max_steps {
         let Evaluated { rmse, r2, pred } = mean_scores(model.as_ref(), io, from)?;
         let effects = model.effects();
-        let d = diagnose_model(io, &pred, &config, &opts.diagnose);
+        // (a model of a step after the first is the fit of its configuration on `io`)
+        let made = known
+            .iter()
+            .filter(|_| step > 0)
+            .find(|k| k.config == config)
+            .and_then(|k| k.diagnosis.clone());
+        let d = made.unwrap_or_else(|| diagnose_model(io, &pred, &config, &opts.diagnose));
         progress(Progress::Step {
             step,
             effects: &effects,
@@ -292,7 +328,7 @@ pub fn improve(
         }
         let candidates: Vec<EffectName> =
             d.candidates.iter().take(opts.candidates).copied().collect();
-        let (best, tried) = refit_candidates(&config, &candidates, io, from, progress)?;
+        let (best, tried) = refit_candidates(&config, &candidates, io, from, known, progress)?;
         if tried.len() > 1 {
             progress(Progress::Tried(&tried));
         }

@@ -131,3 +131,80 @@ fn missing_coupling_is_found_and_added_and_complete_mimo_is_clean() {
         assert_eq!(missing, None, "noise {noise}");
     }
 }
+
+/// Each rung's effects, error (its bits), diagnosis and tried candidates.
+type RungKey = (
+    Vec<EffectName>,
+    u64,
+    Option<EffectName>,
+    Vec<(EffectName, u64)>,
+);
+
+fn rung_keys(ladder: &hystbench::improve::Ladder) -> Vec<RungKey> {
+    ladder
+        .rungs
+        .iter()
+        .map(|r| {
+            let tried = r.tried.iter().map(|(e, x)| (*e, x.to_bits())).collect();
+            (r.effects.clone(), r.rmse.to_bits(), r.missing, tried)
+        })
+        .collect()
+}
+
+#[test]
+fn improve_with_a_known_fit_takes_it_and_gives_the_same_ladder() {
+    use hystbench::diagnose::diagnose_model;
+    use hystbench::improve::{improve, improve_with_fits, ImproveOptions, KnownFit};
+    let whole = record(SISO, SCENARIO, 0.01);
+    let rec = whole.slice(0..20_000);
+    let opts = ImproveOptions::default();
+    let start_config = GreyBoxConfig::from_effect_list("hysteresis,dynamics").unwrap();
+    let start = start_config.fit(&rec).unwrap();
+    let config = GreyBoxConfig::from_effect_list("hysteresis,creep,dynamics").unwrap();
+    let known_of = |fitted: hystbench::graybox::FittedGreyBox| {
+        let pred = hystbench::model::predict_finite(&fitted, &rec).unwrap();
+        let diagnosis = Some(diagnose_model(&rec, &pred, &config, &opts.diagnose));
+        KnownFit {
+            config: config.clone(),
+            fitted,
+            diagnosis,
+        }
+    };
+    let plain = improve(
+        Box::new(start.clone()),
+        start_config.clone(),
+        &rec,
+        &opts,
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_eq!(
+        plain.rungs[1].effects,
+        config.effects(),
+        "the loop adds the hidden creep"
+    );
+    let known = [known_of(config.fit(&rec).unwrap())];
+    let with = improve_with_fits(
+        Box::new(start.clone()),
+        start_config.clone(),
+        &rec,
+        &opts,
+        &known,
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_eq!(rung_keys(&plain), rung_keys(&with));
+    // the known fit is the one taken: a fit of the same structure on another part of the
+    // record scores differently on this one
+    let other = [known_of(config.fit(&whole.slice(20_000..40_000)).unwrap())];
+    let taken = improve_with_fits(
+        Box::new(start),
+        start_config,
+        &rec,
+        &opts,
+        &other,
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_ne!(plain.rungs[1].rmse.to_bits(), taken.rungs[1].rmse.to_bits());
+}

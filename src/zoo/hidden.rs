@@ -17,7 +17,7 @@ use crate::data::{read_csv, IoRecord};
 use crate::diagnose::diagnose_model;
 use crate::effect::EffectName;
 use crate::graybox::GreyBoxConfig;
-use crate::improve::{effect_list, improve, ImproveOptions};
+use crate::improve::{effect_list, improve_with_fits, ImproveOptions, KnownFit};
 use crate::metrics::rmse;
 use crate::model::{plant_effects, predict_finite, Model};
 use rayon::prelude::*;
@@ -199,12 +199,23 @@ fn member_loop(dir: &Path, e: &IndexEntry, opts: &LoopOptions) -> Result<MemberL
         .and_then(|c| {
             let m = c.fit(&io).map_err(|e| e.to_string())?;
             let (r, p) = mean_rmse(&m, &io)?;
-            Ok((c, r, p))
+            Ok((c, m, r, p))
         });
+    // (improve's refit with the hidden effect is the complete model again: it takes this fit
+    // and its diagnosis)
+    let mut known = Vec::new();
     let rmse_complete = match complete {
-        Ok((c, r, pred)) => {
+        Ok((c, m, r, pred)) => {
             let d = diagnose_model(&io, &pred, &c, &opts.improve.diagnose);
             out.false_alarm = d.missing;
+            // (fitted on the samples that improve fits on)
+            if c.options.train_fraction == opts.improve.train_fraction.unwrap_or(1.0) {
+                known.push(KnownFit {
+                    config: c,
+                    fitted: m,
+                    diagnosis: Some(d),
+                });
+            }
             r
         }
         Err(why) => {
@@ -220,7 +231,7 @@ fn member_loop(dir: &Path, e: &IndexEntry, opts: &LoopOptions) -> Result<MemberL
         let case = config_of(&rest).map_err(|e| e.to_string()).and_then(|c| {
             let m = c.fit(&io).map_err(|e| e.to_string())?;
             let (rmse_hidden, _) = mean_rmse(&m, &io)?;
-            let ladder = improve(Box::new(m), c, &io, &opts.improve, &mut |_| {})
+            let ladder = improve_with_fits(Box::new(m), c, &io, &opts.improve, &known, &mut |_| {})
                 .map_err(|e| e.to_string())?;
             let first = &ladder.rungs[0];
             let named = first.missing;
