@@ -19,12 +19,13 @@
 //! ```
 
 use crate::data::IoRecord;
-use crate::diagnose::{diagnose_model, DiagnoseOptions, Diagnosis};
+use crate::diagnose::{diagnose_model_with, DiagnoseOptions, Diagnosis};
 use crate::effect::EffectName;
-use crate::graybox::{FittedGreyBox, GreyBoxConfig, GreyBoxError};
+use crate::graybox::{FitMemo, FittedGreyBox, GreyBoxConfig, GreyBoxError};
 use crate::model::{plant_effects, predict_finite, Model, ModelError};
 use crate::plant::Plant;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 /// What can stop the loop.
 #[derive(Debug, thiserror::Error)]
@@ -205,7 +206,7 @@ fn refit_candidates(
     candidates: &[EffectName],
     io: &IoRecord,
     from: usize,
-    known: &[KnownFit],
+    memo: &FitMemo,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<(Option<Best>, Tried), ImproveError> {
     let mut best: Option<Best> = None;
@@ -213,13 +214,9 @@ fn refit_candidates(
     for &effect in candidates {
         let trial = config.with_effect(effect);
         progress(Progress::Fitting(&trial.effect_list()));
-        let made = known
-            .iter()
-            .find(|k| k.config == trial)
-            .map(|k| k.fitted.clone());
         // a candidate the record cannot support (too short for its time constants, say) is
         // left out; the error when none can be fitted
-        let fitted = match made.map_or_else(|| trial.fit(io), Ok) {
+        let fitted = match memo.fit(&trial, io) {
             Ok(f) => f,
             Err(e) if candidates.len() > 1 => {
                 progress(Progress::Skipped(&trial.effect_list(), &e));
@@ -245,29 +242,45 @@ pub fn improve(
     opts: &ImproveOptions,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Ladder, ImproveError> {
-    improve_with_fits(model, config, io, opts, &[], progress)
+    improve_with_memo(model, config, io, opts, &RecordMemo::default(), progress)
 }
 
-/// A fit already made on the record that [`improve_with_fits`] runs on, and its diagnosis
-/// (made with the same [`DiagnoseOptions`]) when there is one.
-#[derive(Debug, Clone)]
-pub struct KnownFit {
-    pub config: GreyBoxConfig,
-    pub fitted: FittedGreyBox,
-    pub diagnosis: Option<Diagnosis>,
+/// What the loop has fitted and diagnosed on one record, by configuration (fit and
+/// diagnosis are deterministic: the same configuration on the same record gives the same
+/// bits). One memo is for one record and one [`DiagnoseOptions`]; the caller keeps it so.
+#[derive(Debug, Default)]
+pub struct RecordMemo {
+    /// The fits (the diagnosis' refit test keeps its own here too).
+    pub fits: FitMemo,
+    diagnoses: Mutex<Vec<(GreyBoxConfig, Diagnosis)>>,
 }
 
-/// [`improve`] with fits already made on the same record `io`: a candidate whose
-/// configuration equals one of `known` (options included) takes that fit, and after it that
-/// diagnosis, instead of fitting and diagnosing again. Fit and diagnosis are deterministic,
-/// so the ladder is the same as without them (the zoo's loop passes the complete model it has
-/// fitted and diagnosed already).
-pub fn improve_with_fits(
+impl RecordMemo {
+    /// The diagnosis kept for the fit of `config`.
+    pub fn diagnosis(&self, config: &GreyBoxConfig) -> Option<Diagnosis> {
+        let d = self.diagnoses.lock().unwrap_or_else(|p| p.into_inner());
+        d.iter().find(|(c, _)| c == config).map(|(_, d)| d.clone())
+    }
+
+    /// Keep `diagnosis` as that of the fit of `config` (the one in [`RecordMemo::fits`]).
+    pub fn insert_diagnosis(&self, config: GreyBoxConfig, diagnosis: Diagnosis) {
+        let mut d = self.diagnoses.lock().unwrap_or_else(|p| p.into_inner());
+        if !d.iter().any(|(c, _)| *c == config) {
+            d.push((config, diagnosis));
+        }
+    }
+}
+
+/// [`improve`] with what was fitted and diagnosed on `io` already: a fit or a diagnosis that
+/// the memo holds is taken instead of made again, and the new ones are kept there. The ladder
+/// is the same as without it (the zoo's loop shares one memo between a member's cases, whose
+/// refits meet the complete model and its refit tests again and again).
+pub fn improve_with_memo(
     mut model: Box<dyn Model>,
     mut config: GreyBoxConfig,
     io: &IoRecord,
     opts: &ImproveOptions,
-    known: &[KnownFit],
+    memo: &RecordMemo,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Ladder, ImproveError> {
     opts.check()?;
@@ -288,12 +301,18 @@ pub fn improve_with_fits(
         let Evaluated { rmse, r2, pred } = mean_scores(model.as_ref(), io, from)?;
         let effects = model.effects();
         // (a model of a step after the first is the fit of its configuration on `io`)
-        let made = known
-            .iter()
-            .filter(|_| step > 0)
-            .find(|k| k.config == config)
-            .and_then(|k| k.diagnosis.clone());
-        let d = made.unwrap_or_else(|| diagnose_model(io, &pred, &config, &opts.diagnose));
+        let kept = if step > 0 {
+            memo.diagnosis(&config)
+        } else {
+            None
+        };
+        let d = kept.unwrap_or_else(|| {
+            let d = diagnose_model_with(io, &pred, &config, &opts.diagnose, &memo.fits);
+            if step > 0 {
+                memo.insert_diagnosis(config.clone(), d.clone());
+            }
+            d
+        });
         progress(Progress::Step {
             step,
             effects: &effects,
@@ -328,7 +347,7 @@ pub fn improve_with_fits(
         }
         let candidates: Vec<EffectName> =
             d.candidates.iter().take(opts.candidates).copied().collect();
-        let (best, tried) = refit_candidates(&config, &candidates, io, from, known, progress)?;
+        let (best, tried) = refit_candidates(&config, &candidates, io, from, &memo.fits, progress)?;
         if tried.len() > 1 {
             progress(Progress::Tried(&tried));
         }

@@ -152,23 +152,24 @@ fn rung_keys(ladder: &hystbench::improve::Ladder) -> Vec<RungKey> {
 }
 
 #[test]
-fn improve_with_a_known_fit_takes_it_and_gives_the_same_ladder() {
-    use hystbench::diagnose::diagnose_model;
-    use hystbench::improve::{improve, improve_with_fits, ImproveOptions, KnownFit};
+fn improve_with_a_memo_takes_its_fits_and_gives_the_same_ladder() {
+    use hystbench::improve::{improve, improve_with_memo, ImproveOptions, RecordMemo};
     let whole = record(SISO, SCENARIO, 0.01);
     let rec = whole.slice(0..20_000);
     let opts = ImproveOptions::default();
     let start_config = GreyBoxConfig::from_effect_list("hysteresis,dynamics").unwrap();
     let start = start_config.fit(&rec).unwrap();
-    let config = GreyBoxConfig::from_effect_list("hysteresis,creep,dynamics").unwrap();
-    let known_of = |fitted: hystbench::graybox::FittedGreyBox| {
-        let pred = hystbench::model::predict_finite(&fitted, &rec).unwrap();
-        let diagnosis = Some(diagnose_model(&rec, &pred, &config, &opts.diagnose));
-        KnownFit {
-            config: config.clone(),
-            fitted,
-            diagnosis,
-        }
+    let complete = GreyBoxConfig::from_effect_list("hysteresis,creep,dynamics").unwrap();
+    let run = |memo: &RecordMemo| {
+        improve_with_memo(
+            Box::new(start.clone()),
+            start_config.clone(),
+            &rec,
+            &opts,
+            memo,
+            &mut |_| {},
+        )
+        .unwrap()
     };
     let plain = improve(
         Box::new(start.clone()),
@@ -180,31 +181,24 @@ fn improve_with_a_known_fit_takes_it_and_gives_the_same_ladder() {
     .unwrap();
     assert_eq!(
         plain.rungs[1].effects,
-        config.effects(),
+        complete.effects(),
         "the loop adds the hidden creep"
     );
-    let known = [known_of(config.fit(&rec).unwrap())];
-    let with = improve_with_fits(
-        Box::new(start.clone()),
-        start_config.clone(),
-        &rec,
-        &opts,
-        &known,
-        &mut |_| {},
-    )
-    .unwrap();
-    assert_eq!(rung_keys(&plain), rung_keys(&with));
-    // the known fit is the one taken: a fit of the same structure on another part of the
+    // a memo filled by a first run (every fit and the refit tests' fits) gives the same
+    // ladder, and a second run on it fits nothing new
+    let memo = RecordMemo::default();
+    assert_eq!(rung_keys(&plain), rung_keys(&run(&memo)));
+    let kept = memo.fits.len();
+    assert!(kept >= 3, "{kept} fits kept");
+    assert_eq!(rung_keys(&plain), rung_keys(&run(&memo)));
+    assert_eq!(memo.fits.len(), kept);
+    // the memo's fit is the one taken: the same structure fitted on another part of the
     // record scores differently on this one
-    let other = [known_of(config.fit(&whole.slice(20_000..40_000)).unwrap())];
-    let taken = improve_with_fits(
-        Box::new(start),
-        start_config,
-        &rec,
-        &opts,
-        &other,
-        &mut |_| {},
-    )
-    .unwrap();
+    let other = RecordMemo::default();
+    other.fits.insert(
+        complete.clone(),
+        complete.fit(&whole.slice(20_000..40_000)).unwrap(),
+    );
+    let taken = run(&other);
     assert_ne!(plain.rungs[1].rmse.to_bits(), taken.rungs[1].rmse.to_bits());
 }

@@ -30,6 +30,7 @@ pub mod whiteness;
 use crate::data::IoRecord;
 use crate::effect::basis::{BasisContext, EvidenceContext};
 use crate::effect::{registry, EffectName};
+use crate::graybox::FitMemo;
 pub use crate::metrics::holds;
 use crate::metrics::rms;
 pub use refit::{refit_check, RefitCheck, RefitOptions};
@@ -193,6 +194,18 @@ pub fn diagnose_model(
     config: &crate::graybox::GreyBoxConfig,
     opts: &DiagnoseOptions,
 ) -> Diagnosis {
+    diagnose_model_with(rec, predictions, config, opts, &FitMemo::new())
+}
+
+/// [`diagnose_model`] with the fits already made on `rec` (the refit test takes them, and
+/// keeps its own there).
+pub fn diagnose_model_with(
+    rec: &IoRecord,
+    predictions: &[Vec<f64>],
+    config: &crate::graybox::GreyBoxConfig,
+    opts: &DiagnoseOptions,
+    memo: &FitMemo,
+) -> Diagnosis {
     let effects = config.effects();
     let mut d = diagnose(rec, predictions, &effects, opts);
     let Some(ropts) = opts.refit else {
@@ -209,7 +222,7 @@ pub fn diagnose_model(
         })
         .map(|r| r.effect)
         .collect();
-    let Some(check) = refit_check(config, rec, predictions, &tested, &ropts) else {
+    let Some(check) = refit_check(config, rec, predictions, &tested, &ropts, memo) else {
         return d;
     };
     let named = check.named();

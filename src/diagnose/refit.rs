@@ -30,7 +30,7 @@
 
 use crate::data::IoRecord;
 use crate::effect::EffectName;
-use crate::graybox::GreyBoxConfig;
+use crate::graybox::{FitMemo, GreyBoxConfig};
 use crate::model::predict_finite;
 use crate::numeric::gram;
 use rayon::prelude::*;
@@ -167,6 +167,7 @@ pub fn refit_check(
     predictions: &[Vec<f64>],
     candidates: &[EffectName],
     opts: &RefitOptions,
+    memo: &FitMemo,
 ) -> Option<RefitCheck> {
     let blocks = opts.blocks.clamp(2, 16);
     let n = io.len();
@@ -178,14 +179,14 @@ pub fn refit_check(
     let mut base_cfg = config.clone();
     base_cfg.options.train_fraction = 1.0;
     base_cfg.options.held_out = Some(held_out.clone());
-    let base = base_cfg.fit(io).ok()?;
+    let base = memo.fit(&base_cfg, io).ok()?;
     let base_pred = predict_finite(&base, io).ok()?;
     let tests = (candidates.len() * io.outputs.len()).max(1);
     let level = opts.false_alarm / tests as f64;
     let refit = |&e: &EffectName| {
         let c = base_cfg.with_effect(e);
-        let pred = c
-            .fit(io)
+        let pred = memo
+            .fit(&c, io)
             .map_err(|x| x.to_string())
             .and_then(|m| predict_finite(&m, io).map_err(|x| x.to_string()));
         (e, pred)

@@ -14,10 +14,10 @@
 
 use super::{median, noiseless, share, Class, IndexEntry, ZooError, ZooIndex};
 use crate::data::{read_csv, IoRecord};
-use crate::diagnose::diagnose_model;
+use crate::diagnose::diagnose_model_with;
 use crate::effect::EffectName;
 use crate::graybox::GreyBoxConfig;
-use crate::improve::{effect_list, improve_with_fits, ImproveOptions, KnownFit};
+use crate::improve::{effect_list, improve_with_memo, ImproveOptions, RecordMemo};
 use crate::metrics::rmse;
 use crate::model::{plant_effects, predict_finite, Model};
 use rayon::prelude::*;
@@ -193,29 +193,23 @@ fn member_loop(dir: &Path, e: &IndexEntry, opts: &LoopOptions) -> Result<MemberL
         seconds: 0.0,
     };
     let config_of = |list: &[EffectName]| GreyBoxConfig::from_effect_list(&effect_list(list));
+    // one memo for the member: the cases' refits and refit tests meet the complete model and
+    // each other's structures again and again (the same bits as fitting them anew; a
+    // structure fitted on other samples, `improve`'s training part say, is another key)
+    let memo = RecordMemo::default();
     // the complete model
     let complete = config_of(&effects)
         .map_err(|e| e.to_string())
         .and_then(|c| {
-            let m = c.fit(&io).map_err(|e| e.to_string())?;
+            let m = memo.fits.fit(&c, &io).map_err(|e| e.to_string())?;
             let (r, p) = mean_rmse(&m, &io)?;
-            Ok((c, m, r, p))
+            Ok((c, r, p))
         });
-    // (improve's refit with the hidden effect is the complete model again: it takes this fit
-    // and its diagnosis)
-    let mut known = Vec::new();
     let rmse_complete = match complete {
-        Ok((c, m, r, pred)) => {
-            let d = diagnose_model(&io, &pred, &c, &opts.improve.diagnose);
+        Ok((c, r, pred)) => {
+            let d = diagnose_model_with(&io, &pred, &c, &opts.improve.diagnose, &memo.fits);
             out.false_alarm = d.missing;
-            // (fitted on the samples that improve fits on)
-            if c.options.train_fraction == opts.improve.train_fraction.unwrap_or(1.0) {
-                known.push(KnownFit {
-                    config: c,
-                    fitted: m,
-                    diagnosis: Some(d),
-                });
-            }
+            memo.insert_diagnosis(c, d);
             r
         }
         Err(why) => {
@@ -229,9 +223,9 @@ fn member_loop(dir: &Path, e: &IndexEntry, opts: &LoopOptions) -> Result<MemberL
     for &hidden in &effects {
         let rest: Vec<EffectName> = effects.iter().copied().filter(|&x| x != hidden).collect();
         let case = config_of(&rest).map_err(|e| e.to_string()).and_then(|c| {
-            let m = c.fit(&io).map_err(|e| e.to_string())?;
+            let m = memo.fits.fit(&c, &io).map_err(|e| e.to_string())?;
             let (rmse_hidden, _) = mean_rmse(&m, &io)?;
-            let ladder = improve_with_fits(Box::new(m), c, &io, &opts.improve, &known, &mut |_| {})
+            let ladder = improve_with_memo(Box::new(m), c, &io, &opts.improve, &memo, &mut |_| {})
                 .map_err(|e| e.to_string())?;
             let first = &ladder.rungs[0];
             let named = first.missing;
