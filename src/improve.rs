@@ -21,11 +21,10 @@
 use crate::data::IoRecord;
 use crate::diagnose::{diagnose_model_with, DiagnoseOptions, Diagnosis};
 use crate::effect::EffectName;
-use crate::graybox::{FitMemo, FittedGreyBox, GreyBoxConfig, GreyBoxError};
+use crate::graybox::{ByConfig, FitMemo, FittedGreyBox, GreyBoxConfig, GreyBoxError};
 use crate::model::{plant_effects, predict_finite, Model, ModelError};
 use crate::plant::Plant;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
 
 /// What can stop the loop.
 #[derive(Debug, thiserror::Error)]
@@ -252,23 +251,8 @@ pub fn improve(
 pub struct RecordMemo {
     /// The fits (the diagnosis' refit test keeps its own here too).
     pub fits: FitMemo,
-    diagnoses: Mutex<Vec<(GreyBoxConfig, Diagnosis)>>,
-}
-
-impl RecordMemo {
-    /// The diagnosis kept for the fit of `config`.
-    pub fn diagnosis(&self, config: &GreyBoxConfig) -> Option<Diagnosis> {
-        let d = self.diagnoses.lock().unwrap_or_else(|p| p.into_inner());
-        d.iter().find(|(c, _)| c == config).map(|(_, d)| d.clone())
-    }
-
-    /// Keep `diagnosis` as that of the fit of `config` (the one in [`RecordMemo::fits`]).
-    pub fn insert_diagnosis(&self, config: GreyBoxConfig, diagnosis: Diagnosis) {
-        let mut d = self.diagnoses.lock().unwrap_or_else(|p| p.into_inner());
-        if !d.iter().any(|(c, _)| *c == config) {
-            d.push((config, diagnosis));
-        }
-    }
+    /// The diagnoses of the fits, by the fit's configuration.
+    pub diagnoses: ByConfig<Diagnosis>,
 }
 
 /// [`improve`] with what was fitted and diagnosed on `io` already: a fit or a diagnosis that
@@ -302,14 +286,14 @@ pub fn improve_with_memo(
         let effects = model.effects();
         // (a model of a step after the first is the fit of its configuration on `io`)
         let kept = if step > 0 {
-            memo.diagnosis(&config)
+            memo.diagnoses.get(&config)
         } else {
             None
         };
         let d = kept.unwrap_or_else(|| {
             let d = diagnose_model_with(io, &pred, &config, &opts.diagnose, &memo.fits);
             if step > 0 {
-                memo.insert_diagnosis(config.clone(), d.clone());
+                memo.diagnoses.insert(config.clone(), d.clone());
             }
             d
         });

@@ -7,12 +7,51 @@ use super::{FittedGreyBox, GreyBoxConfig, GreyBoxError};
 use crate::data::IoRecord;
 use std::sync::Mutex;
 
-/// The fits made on one record, by configuration (options included). Safe to share between
-/// threads; a memo is for one record only (the caller keeps it so).
-#[derive(Debug, Default)]
-pub struct FitMemo {
-    fits: Mutex<Vec<(GreyBoxConfig, FittedGreyBox)>>,
+/// Values kept by configuration (options included), for one record. Safe to share between
+/// threads; the caller keeps a memo to one record.
+#[derive(Debug)]
+pub struct ByConfig<T> {
+    kept: Mutex<Vec<(GreyBoxConfig, T)>>,
 }
+
+impl<T> Default for ByConfig<T> {
+    fn default() -> Self {
+        ByConfig {
+            kept: Mutex::new(Vec::new()),
+        }
+    }
+}
+
+impl<T: Clone> ByConfig<T> {
+    /// The value kept for `config`, if any.
+    pub fn get(&self, config: &GreyBoxConfig) -> Option<T> {
+        let kept = self.kept.lock().unwrap_or_else(|p| p.into_inner());
+        kept.iter()
+            .find(|(c, _)| c == config)
+            .map(|(_, v)| v.clone())
+    }
+
+    /// Keep `value` for `config` (the first value kept stays).
+    pub fn insert(&self, config: GreyBoxConfig, value: T) {
+        let mut kept = self.kept.lock().unwrap_or_else(|p| p.into_inner());
+        if !kept.iter().any(|(c, _)| *c == config) {
+            kept.push((config, value));
+        }
+    }
+
+    /// The number of values kept.
+    pub fn len(&self) -> usize {
+        self.kept.lock().unwrap_or_else(|p| p.into_inner()).len()
+    }
+
+    /// Nothing kept.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// The fits made on one record, by configuration.
+pub type FitMemo = ByConfig<FittedGreyBox>;
 
 impl FitMemo {
     /// An empty memo.
@@ -33,31 +72,5 @@ impl FitMemo {
         let f = config.fit(rec)?;
         self.insert(config.clone(), f.clone());
         Ok(f)
-    }
-
-    /// The fit kept for `config`, if any.
-    pub fn get(&self, config: &GreyBoxConfig) -> Option<FittedGreyBox> {
-        let fits = self.fits.lock().unwrap_or_else(|p| p.into_inner());
-        fits.iter()
-            .find(|(c, _)| c == config)
-            .map(|(_, f)| f.clone())
-    }
-
-    /// Keep `fitted` as the fit of `config` on this memo's record (a fit made elsewhere).
-    pub fn insert(&self, config: GreyBoxConfig, fitted: FittedGreyBox) {
-        let mut fits = self.fits.lock().unwrap_or_else(|p| p.into_inner());
-        if !fits.iter().any(|(c, _)| *c == config) {
-            fits.push((config, fitted));
-        }
-    }
-
-    /// The number of fits kept.
-    pub fn len(&self) -> usize {
-        self.fits.lock().unwrap_or_else(|p| p.into_inner()).len()
-    }
-
-    /// No fit kept.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
     }
 }

@@ -41,6 +41,6 @@ mod validate;
 pub use config::{FitOptions, GreyBoxConfig, Selected, CV_FOLDS, RIDGES};
 pub use driver::train_samples;
 pub use error::GreyBoxError;
-pub use memo::FitMemo;
+pub use memo::{ByConfig, FitMemo};
 pub use model::{FitSummary, FittedGreyBox, GreyBoxFile, OutputFit, FORMAT, VERSION};
 pub use validate::{blocks, CrossValidation};

@@ -209,7 +209,7 @@ fn member_loop(dir: &Path, e: &IndexEntry, opts: &LoopOptions) -> Result<MemberL
         Ok((c, r, pred)) => {
             let d = diagnose_model_with(&io, &pred, &c, &opts.improve.diagnose, &memo.fits);
             out.false_alarm = d.missing;
-            memo.insert_diagnosis(c, d);
+            memo.diagnoses.insert(c, d);
             r
         }
         Err(why) => {
