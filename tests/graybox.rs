@@ -11,7 +11,7 @@ use hystbench::plant::EffectSpecs;
 use hystbench::plant::{Plant, PlantSpec};
 use hystbench::scenario::{Scenario, ScenarioSpec};
 use hystbench::simulator::simulate_scenario;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -306,4 +306,46 @@ fn a_short_2dof_record_is_fitted_with_fewer_plays() {
         e.contains("needs at least") && e.contains("parameters"),
         "{e}"
     );
+}
+
+/// A staircase of a few levels determines a path's operator at those levels only: the default
+/// fit takes the plays that they determine (here 5 of 39) and predicts the levels of the
+/// record's second half, which the first never visits, to the noise. With 39 plays and an
+/// input map of 8 ramps fitted on 8 levels it missed them by 38 times the noise (a zoo
+/// member's record, seed 1009 member 6).
+#[test]
+fn a_staircase_of_few_levels_is_fitted_with_the_plays_it_determines() {
+    let p = Path::new("staircase.json");
+    let plant = PlantSpec::parse(
+        p,
+        r#"{"name": "narrow_bouc_wen", "inputs": ["u"], "outputs": [{"name": "y", "paths": [
+          {"input": "u", "hysteresis": {"bouc_wen":
+            {"d": 0.108, "A": 0.1335, "B": 2.333, "Gamma": 1.770}}}]}]}"#,
+    )
+    .unwrap()
+    .check(p)
+    .unwrap();
+    let noise = 6e-4;
+    let s = format!(
+        r#"{{"name": "stairs", "sampling_period_s": 0.001, "samples": 3000, "noise_std": {noise},
+        "seed": 3, "inputs": [{{"concat": [
+          {{"duration_s": 1.6, "excitation": {{"staircase":
+            {{"levels": [1.48, 9.22, 1.91, 8.16, 4.47, 7.14, 5.80, 6.92], "hold_s": 0.2}}}}}},
+          {{"duration_s": 1.4, "excitation": {{"staircase":
+            {{"levels": [0.98, 8.22, 1.97, 5.37, 4.92, 6.39, 5.80], "hold_s": 0.2}}}}}}
+        ]}}]}}"#
+    );
+    let rec = record(&plant, &s);
+    let mut cfg = GreyBoxConfig::from_effect_list("hysteresis").unwrap();
+    cfg.options.train_fraction = 1.6 / 3.0;
+    assert_eq!(cfg.options.plays, 39);
+    let supported = cfg.plays_supported(&rec).unwrap();
+    assert!(supported < 9, "{supported} plays supported by 8 levels");
+    let m = cfg.fit(&rec).unwrap();
+    eprintln!("plays {} held-out rmse {:.3e}", m.fit.plays, m.fit.rmse);
+    assert!(m.fit.plays <= supported, "{} plays", m.fit.plays);
+    assert!(m.fit.rmse < 2.0 * noise, "held-out rmse {}", m.fit.rmse);
+    // a continuous input sets no limit
+    let sine = record(&plant, SCENARIO_1K);
+    assert!(cfg.plays_supported(&sine).is_none_or(|s| s >= 39));
 }

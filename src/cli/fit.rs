@@ -77,9 +77,19 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .effects()
         .contains(&hystbench::effect::hysteresis::NAME);
     if hysteresis && model.fit.plays < cfg.options.plays {
+        let why = match cfg.plays_supported(&io) {
+            Some(s) if s < cfg.options.plays => format!(
+                "the input takes only a few distinct levels in the {} fitted samples (a staircase); they determine at most {s} play operators per path",
+                model.fit.train_samples
+            ),
+            _ => format!(
+                "the most that {} fitted samples support at about ten samples per parameter",
+                model.fit.train_samples
+            ),
+        };
         eprintln!(
-            "note: {} play operators per path instead of {}: the most that {} fitted samples support at about ten samples per parameter (--plays N asks for N)",
-            model.fit.plays, cfg.options.plays, model.fit.train_samples
+            "note: {} play operators per path instead of {}: {why} (--plays N asks for N)",
+            model.fit.plays, cfg.options.plays
         );
     }
     if !model.fit.converged {

@@ -344,7 +344,12 @@ pub fn input_map_ramps(plays: usize) -> usize {
 }
 
 /// Knots spread evenly inside the input's range [min u, max u] (never exactly 0, where the
-/// ramp is the input itself, the path's gain column).
+/// ramp is the input itself, the path's gain column), kept only where the samples determine
+/// the map's slope on each side: every interval between consecutive kept knots holds a value
+/// of `u` (the first one two), as a linear spline's coefficients ask (Schoenberg-Whitney). A
+/// continuous input keeps them all; a staircase of a few levels keeps those between levels
+/// (the ramps of the other knots would be fitted to nothing and bend the map between levels
+/// the record never visits).
 pub fn input_map_knots(u: &[f64], n: usize) -> Vec<f64> {
     let (lo, hi) = u
         .iter()
@@ -352,10 +357,23 @@ pub fn input_map_knots(u: &[f64], n: usize) -> Vec<f64> {
     if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
         return Vec::new();
     }
-    (1..=n)
+    let even: Vec<f64> = (1..=n)
         .map(|j| lo + (hi - lo) * j as f64 / (n + 1) as f64)
         .map(|z| if z == 0.0 { 1e-9 * (hi - lo) } else { z })
-        .collect()
+        .collect();
+    let values = levels(u);
+    let mut kept = Vec::with_capacity(n);
+    let (mut next, mut need) = (0, 2);
+    for z in even {
+        let before = values[next..].partition_point(|&v| v < z);
+        if before >= need {
+            kept.push(z);
+            next += before;
+            need = 1;
+        }
+    }
+    // the last interval holds max u, above every knot
+    kept
 }
 
 /// The optional Bouc-Wen column beside a Prandtl-Ishlinskii term (the default operator's
@@ -952,6 +970,22 @@ impl Effect for HysteresisEffect {
             _ => (3, 0),
         }
     }
+    /// An input that visits only a few distinct levels (a staircase) determines a path's
+    /// operator at those levels only: its columns (the linear term, the plays and the input
+    /// map's ramps) are kept to no more than the levels of the fewest-levelled input that
+    /// reverses (the paths of the others are linear). A continuous input sets no limit.
+    fn plays_supported(&self, inputs: &[&[f64]], variant: usize) -> Option<usize> {
+        if variant == 2 {
+            return None;
+        }
+        let levels = inputs
+            .iter()
+            .filter(|u| reversals(u) >= 2)
+            .map(|u| levels(u).len())
+            .min()?;
+        let ramps = |p: usize| if variant == 0 { input_map_ramps(p) } else { 0 };
+        (0..levels).rev().find(|&p| 1 + p + ramps(p) <= levels)
+    }
     /// One input at least must go up and down; the paths of inputs that do not are linear.
     fn check_record(&self, rec: &RecordView, _variant: usize) -> Result<(), RecordError> {
         let revs: Vec<usize> = rec.inputs.iter().map(|u| reversals(u)).collect();
@@ -974,6 +1008,15 @@ impl Effect for HysteresisEffect {
             why: format!("it reverses direction {rev} times{others}; a hysteresis loop needs the input to go up and down (at least 2 reversals, better several amplitudes)"),
         })
     }
+}
+
+/// The distinct values of a signal, increasing (values closer than 1e-9 of its range are one).
+pub fn levels(u: &[f64]) -> Vec<f64> {
+    let tol = 1e-9 * crate::metrics::ptp(u);
+    let mut values = u.to_vec();
+    values.sort_by(f64::total_cmp);
+    values.dedup_by(|a, b| (*a - *b).abs() <= tol);
+    values
 }
 
 /// Direction reversals of a signal (moves below 1e-9 of its range ignored).
@@ -1000,6 +1043,35 @@ pub fn reversals(u: &[f64]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A continuous input keeps every knot of the input map; a staircase keeps those that
+    /// have a level on each side (the first interval two), here 5 of 8.
+    #[test]
+    fn the_input_map_keeps_the_knots_the_levels_determine() {
+        let sine: Vec<f64> = (0..2000)
+            .map(|k| 5.0 + 4.0 * (k as f64 * 0.01).sin())
+            .collect();
+        assert_eq!(input_map_knots(&sine, 8).len(), 8);
+        let levels = [
+            1.4752, 9.2164, 1.9056, 8.1608, 4.4683, 7.1358, 5.8024, 6.9184,
+        ];
+        let stairs: Vec<f64> = levels.iter().flat_map(|&l| [l; 50]).collect();
+        let knots = input_map_knots(&stairs, 8);
+        assert_eq!(knots.len(), 5, "{knots:?}");
+        let mut sorted = levels.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let below = |z: f64| sorted.iter().filter(|&&v| v < z).count();
+        assert!(below(knots[0]) >= 2);
+        for w in knots.windows(2) {
+            assert!(
+                below(w[1]) > below(w[0]),
+                "no level between {} and {}",
+                w[0],
+                w[1]
+            );
+        }
+        assert!(below(knots[4]) < sorted.len());
+    }
 
     /// The slopes of the piecewise-linear map fitted on the intervals between the knots
     /// convert to a dead-zone superposition that gives the same map, increasing, and a valid

@@ -231,6 +231,19 @@ impl GreyBoxConfig {
     /// `options.train_fraction` of the record is fitted; scores are on the rest when it is < 1,
     /// else on the whole record.
     pub fn fit(&self, rec: &IoRecord) -> Result<FittedGreyBox, GreyBoxError> {
+        // inputs of a few levels: the most plays of FEWER_PLAYS that they determine (3 at least)
+        let most = match self.plays_supported(rec) {
+            Some(s) if self.options.adapt_plays && s < self.options.plays => FEWER_PLAYS
+                .into_iter()
+                .find(|&p| p <= s)
+                .unwrap_or(FEWER_PLAYS[FEWER_PLAYS.len() - 1]),
+            _ => self.options.plays,
+        };
+        if most < self.options.plays {
+            let mut c = self.clone();
+            c.options.plays = most;
+            return c.fit(rec);
+        }
         let first = match self.fit_at_plays(rec) {
             Err(e @ GreyBoxError::TooShort { .. }) if self.options.adapt_plays => e,
             other => return other,
@@ -246,6 +259,29 @@ impl GreyBoxConfig {
             }
         }
         Err(last)
+    }
+
+    /// The most play operators per path whose columns the samples that
+    /// [`GreyBoxConfig::fit`] fits determine (`Effect::plays_supported`: few on a staircase of
+    /// a few levels); `None`: no effect of the model sets a limit.
+    pub fn plays_supported(&self, rec: &IoRecord) -> Option<usize> {
+        let n = train_samples(rec.len(), self.options.train_fraction.clamp(1e-9, 1.0));
+        let held = self.options.held_out.clone().unwrap_or(0..0);
+        let fitted: Vec<Vec<f64>> = rec
+            .inputs
+            .iter()
+            .map(|s| {
+                (0..n)
+                    .filter(|k| !held.contains(k))
+                    .map(|k| s.values[k])
+                    .collect()
+            })
+            .collect();
+        let inputs: Vec<&[f64]> = fitted.iter().map(|v| v.as_slice()).collect();
+        self.chosen()
+            .iter()
+            .filter_map(|c| c.effect.plays_supported(&inputs, c.variant))
+            .min()
     }
 
     /// [`GreyBoxConfig::fit`] with `options.plays` as they are.
