@@ -36,7 +36,8 @@ pub struct Args {
     #[arg(long)]
     pub train_fraction: Option<f64>,
     /// Play operators per Prandtl-Ishlinskii path (default: 39, or the most of 19, 9, 5, 3
-    /// that a short record supports at about ten samples per parameter).
+    /// that a short record supports at about ten samples per parameter; a path whose input
+    /// takes a few distinct levels, a staircase, gets no more than they determine).
     #[arg(long)]
     pub plays: Option<usize>,
     /// Overwrite an existing model file.
@@ -77,19 +78,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .effects()
         .contains(&hystbench::effect::hysteresis::NAME);
     if hysteresis && model.fit.plays < cfg.options.plays {
-        let why = match cfg.plays_supported(&io) {
-            Some(s) if s < cfg.options.plays => format!(
-                "the input takes only a few distinct levels in the {} fitted samples (a staircase); they determine at most {s} play operators per path",
-                model.fit.train_samples
-            ),
-            _ => format!(
-                "the most that {} fitted samples support at about ten samples per parameter",
-                model.fit.train_samples
-            ),
-        };
         eprintln!(
-            "note: {} play operators per path instead of {}: {why} (--plays N asks for N)",
-            model.fit.plays, cfg.options.plays
+            "note: {} play operators per path instead of {}: the most that {} fitted samples support at about ten samples per parameter (--plays N asks for N)",
+            model.fit.plays, cfg.options.plays, model.fit.train_samples
+        );
+    }
+    if let Some(s) = cfg
+        .plays_supported(&io)
+        .filter(|&s| hysteresis && s < model.fit.plays)
+    {
+        eprintln!(
+            "note: a path whose input takes only a few distinct levels in the fitted samples (a staircase) gets {s} play operators: its levels determine no more"
         );
     }
     if !model.fit.converged {

@@ -81,6 +81,9 @@ pub struct PathSetup<'a> {
     /// Basis size: play operators per Prandtl-Ishlinskii path (smaller in the coarse problem
     /// of the initialisation).
     pub plays: usize,
+    /// Fewer plays on an input of a few distinct levels (a staircase), as many as they
+    /// determine (`hysteresis::plays_determined`); off where a ridge bounds the terms.
+    pub plays_by_levels: bool,
     /// The variant chosen (index into `Effect::variants`, 0 = the default).
     pub variant: usize,
     /// The path's first-stage fit, in the second stage of a two-stage fit.

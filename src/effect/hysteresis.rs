@@ -344,12 +344,7 @@ pub fn input_map_ramps(plays: usize) -> usize {
 }
 
 /// Knots spread evenly inside the input's range [min u, max u] (never exactly 0, where the
-/// ramp is the input itself, the path's gain column), kept only where the samples determine
-/// the map's slope on each side: every interval between consecutive kept knots holds a value
-/// of `u` (the first one two), as a linear spline's coefficients ask (Schoenberg-Whitney). A
-/// continuous input keeps them all; a staircase of a few levels keeps those between levels
-/// (the ramps of the other knots would be fitted to nothing and bend the map between levels
-/// the record never visits).
+/// ramp is the input itself, the path's gain column).
 pub fn input_map_knots(u: &[f64], n: usize) -> Vec<f64> {
     let (lo, hi) = u
         .iter()
@@ -357,12 +352,21 @@ pub fn input_map_knots(u: &[f64], n: usize) -> Vec<f64> {
     if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
         return Vec::new();
     }
-    let even: Vec<f64> = (1..=n)
+    (1..=n)
         .map(|j| lo + (hi - lo) * j as f64 / (n + 1) as f64)
         .map(|z| if z == 0.0 { 1e-9 * (hi - lo) } else { z })
-        .collect();
+        .collect()
+}
+
+/// [`input_map_knots`] kept only where the samples determine the map's slope on each side:
+/// every interval between consecutive kept knots holds a value of `u` (the first one two), as
+/// a linear spline's coefficients ask (Schoenberg-Whitney). A continuous input keeps them
+/// all; a staircase of a few levels keeps those between levels (the ramps of the others would
+/// be fitted to nothing and bend the map between levels the record never visits).
+pub fn input_map_knots_by_levels(u: &[f64], n: usize) -> Vec<f64> {
+    let even = input_map_knots(u, n);
     let values = levels(u);
-    let mut kept = Vec::with_capacity(n);
+    let mut kept = Vec::with_capacity(even.len());
     let (mut next, mut need) = (0, 2);
     for z in even {
         let before = values[next..].partition_point(|&v| v < z);
@@ -577,7 +581,7 @@ impl<'a> OutputMapTerm<'a> {
             .filter(fitted)
             .fold((0.0f64, 0.0f64), |(a, b), k| (a.min(z[k]), b.max(z[k])));
         let mut knots = Vec::new();
-        for f in output_map_knot_fractions(output_map_knots(setup.plays)) {
+        for f in output_map_knot_fractions(output_map_knots(pi.thresholds.len())) {
             if hi > 0.0 {
                 knots.push(f * hi);
             }
@@ -935,14 +939,21 @@ impl Effect for HysteresisEffect {
                 range: max_abs(&seen),
             }),
             v => {
-                let thresholds = pi_thresholds(&seen, setup.plays);
+                let count = if setup.plays_by_levels {
+                    plays_determined(&seen, setup.plays, v)
+                } else {
+                    setup.plays
+                };
+                let thresholds = pi_thresholds(&seen, count);
                 let plays = plays_of(u, &thresholds);
                 // a negative path cannot carry a Bouc-Wen term (A > 0 in the plant file)
                 let bw = (v == 0 && setup.sign > 0.0).then(|| max_abs(&seen));
-                let knots = if v == 0 {
-                    input_map_knots(&seen, input_map_ramps(setup.plays))
-                } else {
-                    Vec::new()
+                let knots = match v {
+                    0 if setup.plays_by_levels => {
+                        input_map_knots_by_levels(&seen, input_map_ramps(count))
+                    }
+                    0 => input_map_knots(&seen, input_map_ramps(count)),
+                    _ => Vec::new(),
                 };
                 let ramps = knots
                     .iter()
@@ -970,21 +981,17 @@ impl Effect for HysteresisEffect {
             _ => (3, 0),
         }
     }
-    /// An input that visits only a few distinct levels (a staircase) determines a path's
-    /// operator at those levels only: its columns (the linear term, the plays and the input
-    /// map's ramps) are kept to no more than the levels of the fewest-levelled input that
-    /// reverses (the paths of the others are linear). A continuous input sets no limit.
-    fn plays_supported(&self, inputs: &[&[f64]], variant: usize) -> Option<usize> {
+    /// The fewest plays that [`plays_determined`] gives a path of `plays`, over the inputs
+    /// that reverse (the paths of the others are linear).
+    fn plays_supported(&self, inputs: &[&[f64]], variant: usize, plays: usize) -> Option<usize> {
         if variant == 2 {
             return None;
         }
-        let levels = inputs
+        inputs
             .iter()
             .filter(|u| reversals(u) >= 2)
-            .map(|u| levels(u).len())
-            .min()?;
-        let ramps = |p: usize| if variant == 0 { input_map_ramps(p) } else { 0 };
-        (0..levels).rev().find(|&p| 1 + p + ramps(p) <= levels)
+            .map(|u| plays_determined(u, plays, variant))
+            .min()
     }
     /// One input at least must go up and down; the paths of inputs that do not are linear.
     fn check_record(&self, rec: &RecordView, _variant: usize) -> Result<(), RecordError> {
@@ -1008,6 +1015,29 @@ impl Effect for HysteresisEffect {
             why: format!("it reverses direction {rev} times{others}; a hysteresis loop needs the input to go up and down (at least 2 reversals, better several amplitudes)"),
         })
     }
+}
+
+/// The play counts of a parsimonious model (a short record's, a staircase's paths), most first.
+pub const FEWER_PLAYS: [usize; 4] = [19, 9, 5, 3];
+
+/// The play operators of a path on input `u` (its fitted samples): `plays`, or fewer when the
+/// input visits only a few distinct levels (a staircase). The path's operator is then seen at
+/// those levels only, so its columns (the linear term, the plays and, for the default
+/// operator (`variant` 0), the input map's ramps) are kept to no more than the levels; plays
+/// beyond them would be fitted to nothing and predict the levels the record has not visited
+/// badly. The count is then the most of [`FEWER_PLAYS`] that fits (3 at least; on the zoo's
+/// improvement loop the ladder named more hidden effects than the largest count that fits).
+/// A continuous input (sines, chirps, noise) has as many levels as samples.
+pub fn plays_determined(u: &[f64], plays: usize, variant: usize) -> usize {
+    let levels = levels(u).len();
+    let ramps = |p: usize| if variant == 0 { input_map_ramps(p) } else { 0 };
+    if 1 + plays + ramps(plays) <= levels {
+        return plays;
+    }
+    FEWER_PLAYS
+        .into_iter()
+        .find(|&p| p < plays && 1 + p + ramps(p) <= levels)
+        .unwrap_or(plays.min(3))
 }
 
 /// The distinct values of a signal, increasing (values closer than 1e-9 of its range are one).
@@ -1044,19 +1074,23 @@ pub fn reversals(u: &[f64]) -> usize {
 mod tests {
     use super::*;
 
-    /// A continuous input keeps every knot of the input map; a staircase keeps those that
-    /// have a level on each side (the first interval two), here 5 of 8.
+    /// A continuous input keeps every knot of the input map and its plays; a staircase keeps
+    /// the knots that have a level on each side (the first interval two), here 5 of 8, and the
+    /// plays its levels determine.
     #[test]
-    fn the_input_map_keeps_the_knots_the_levels_determine() {
+    fn a_staircase_keeps_the_knots_and_plays_its_levels_determine() {
         let sine: Vec<f64> = (0..2000)
             .map(|k| 5.0 + 4.0 * (k as f64 * 0.01).sin())
             .collect();
-        assert_eq!(input_map_knots(&sine, 8).len(), 8);
+        assert_eq!(
+            input_map_knots_by_levels(&sine, 8),
+            input_map_knots(&sine, 8)
+        );
         let levels = [
             1.4752, 9.2164, 1.9056, 8.1608, 4.4683, 7.1358, 5.8024, 6.9184,
         ];
         let stairs: Vec<f64> = levels.iter().flat_map(|&l| [l; 50]).collect();
-        let knots = input_map_knots(&stairs, 8);
+        let knots = input_map_knots_by_levels(&stairs, 8);
         assert_eq!(knots.len(), 5, "{knots:?}");
         let mut sorted = levels.to_vec();
         sorted.sort_by(f64::total_cmp);
@@ -1071,6 +1105,12 @@ mod tests {
             );
         }
         assert!(below(knots[4]) < sorted.len());
+        // the plays: 1 + plays + ramps <= 8 levels; all 39 on the sine
+        assert_eq!(plays_determined(&stairs, 39, 0), 5);
+        assert_eq!(plays_determined(&stairs, 39, 1), 5);
+        assert_eq!(plays_determined(&stairs, 7, 1), 7);
+        assert_eq!(plays_determined(&stairs, 3, 0), 3);
+        assert_eq!(plays_determined(&sine, 39, 0), 39);
     }
 
     /// The slopes of the piecewise-linear map fitted on the intervals between the knots
@@ -1098,6 +1138,7 @@ mod tests {
             ts: 1e-3,
             sign: 1.0,
             plays: 5,
+            plays_by_levels: true,
             variant: 1,
             previous: Some(prev.clone()),
         };

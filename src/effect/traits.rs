@@ -164,9 +164,9 @@ pub trait Effect: Send + Sync + 'static {
     fn parameter_count(&self, _variant: usize, _plays: usize) -> (usize, usize) {
         (0, 0)
     }
-    /// The most play operators per path whose columns the record's fitted inputs determine
-    /// (a staircase of a few levels determines few); `None`: the effect sets no limit.
-    fn plays_supported(&self, _inputs: &[&[f64]], _variant: usize) -> Option<usize> {
+    /// The play operators a path of `plays` gets on the record's fitted inputs: fewer where
+    /// they determine fewer (a staircase of a few levels); `None`: the effect sets no limit.
+    fn plays_supported(&self, _inputs: &[&[f64]], _variant: usize, _plays: usize) -> Option<usize> {
         None
     }
     /// Can the record support the effect? (Reversals for hysteresis, holds for creep...)

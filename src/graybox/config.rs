@@ -48,8 +48,9 @@ pub const RIDGES: [f64; 5] = [1.0, 0.1, 0.01, 1e-3, 0.0];
 /// Blocks of the cross-validations that choose a ridge.
 pub const CV_FOLDS: usize = 4;
 
-/// The play counts a short record falls back to, most first.
-pub const FEWER_PLAYS: [usize; 4] = [19, 9, 5, 3];
+/// The play counts a short record falls back to, most first (the hysteresis effect's ladder,
+/// which a staircase's paths take too).
+pub const FEWER_PLAYS: [usize; 4] = crate::effect::hysteresis::FEWER_PLAYS;
 
 impl Default for FitOptions {
     fn default() -> Self {

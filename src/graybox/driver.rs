@@ -97,6 +97,8 @@ impl GreyBoxConfig {
             output_terms: of(&[Slot::OutputTerm]),
             previous: Vec::new(),
             parsimonious: self.options.parsimonious_creep,
+            // a ridge chosen or set bounds the hysteresis terms already
+            plays_by_levels: self.options.ridge == 0.0 && !self.options.choose_ridge,
         })
     }
 
@@ -231,19 +233,6 @@ impl GreyBoxConfig {
     /// `options.train_fraction` of the record is fitted; scores are on the rest when it is < 1,
     /// else on the whole record.
     pub fn fit(&self, rec: &IoRecord) -> Result<FittedGreyBox, GreyBoxError> {
-        // inputs of a few levels: the most plays of FEWER_PLAYS that they determine (3 at least)
-        let most = match self.plays_supported(rec) {
-            Some(s) if self.options.adapt_plays && s < self.options.plays => FEWER_PLAYS
-                .into_iter()
-                .find(|&p| p <= s)
-                .unwrap_or(FEWER_PLAYS[FEWER_PLAYS.len() - 1]),
-            _ => self.options.plays,
-        };
-        if most < self.options.plays {
-            let mut c = self.clone();
-            c.options.plays = most;
-            return c.fit(rec);
-        }
         let first = match self.fit_at_plays(rec) {
             Err(e @ GreyBoxError::TooShort { .. }) if self.options.adapt_plays => e,
             other => return other,
@@ -261,9 +250,9 @@ impl GreyBoxConfig {
         Err(last)
     }
 
-    /// The most play operators per path whose columns the samples that
-    /// [`GreyBoxConfig::fit`] fits determine (`Effect::plays_supported`: few on a staircase of
-    /// a few levels); `None`: no effect of the model sets a limit.
+    /// The most play operators that a path gets on the samples [`GreyBoxConfig::fit`] fits,
+    /// over the paths whose input reverses (`Effect::plays_supported`: few on a staircase of a
+    /// few levels, which the fit gives that path alone); `None`: no effect sets a limit.
     pub fn plays_supported(&self, rec: &IoRecord) -> Option<usize> {
         let n = train_samples(rec.len(), self.options.train_fraction.clamp(1e-9, 1.0));
         let held = self.options.held_out.clone().unwrap_or(0..0);
@@ -280,7 +269,10 @@ impl GreyBoxConfig {
         let inputs: Vec<&[f64]> = fitted.iter().map(|v| v.as_slice()).collect();
         self.chosen()
             .iter()
-            .filter_map(|c| c.effect.plays_supported(&inputs, c.variant))
+            .filter_map(|c| {
+                c.effect
+                    .plays_supported(&inputs, c.variant, self.options.plays)
+            })
             .min()
     }
 

@@ -161,6 +161,8 @@ pub(crate) struct OutputStructure {
     pub previous: Vec<Option<crate::effect::fitting::PreviousPath>>,
     /// [`crate::effect::fitting::OutputSetup::parsimonious`].
     pub parsimonious: bool,
+    /// [`crate::effect::fitting::PathSetup::plays_by_levels`].
+    pub plays_by_levels: bool,
 }
 
 impl OutputStructure {
@@ -306,6 +308,7 @@ impl<'a> OutputProblem<'a> {
                     ts,
                     sign,
                     plays,
+                    plays_by_levels: structure.plays_by_levels,
                     variant: c.variant,
                     previous: structure.previous.get(k).cloned().flatten(),
                 };
