@@ -363,9 +363,9 @@ pub fn input_map_knots(u: &[f64], n: usize) -> Vec<f64> {
 /// a linear spline's coefficients ask (Schoenberg-Whitney). A continuous input keeps them
 /// all; a staircase of a few levels keeps those between levels (the ramps of the others would
 /// be fitted to nothing and bend the map between levels the record never visits).
-pub fn input_map_knots_by_levels(u: &[f64], n: usize) -> Vec<f64> {
+/// `values` are the distinct values of `u` ([`levels`]).
+pub fn input_map_knots_by_levels(u: &[f64], values: &[f64], n: usize) -> Vec<f64> {
     let even = input_map_knots(u, n);
-    let values = levels(u);
     let mut kept = Vec::with_capacity(even.len());
     let (mut next, mut need) = (0, 2);
     for z in even {
@@ -939,20 +939,18 @@ impl Effect for HysteresisEffect {
                 range: max_abs(&seen),
             }),
             v => {
-                let count = if setup.plays_by_levels {
-                    plays_determined(&seen, setup.plays, v)
-                } else {
-                    setup.plays
-                };
+                // the input's distinct levels, sorted once for the plays and the knots
+                let values = setup.plays_by_levels.then(|| levels(&seen));
+                let count = values
+                    .as_ref()
+                    .map_or(setup.plays, |l| plays_for_levels(l.len(), setup.plays, v));
                 let thresholds = pi_thresholds(&seen, count);
                 let plays = plays_of(u, &thresholds);
                 // a negative path cannot carry a Bouc-Wen term (A > 0 in the plant file)
                 let bw = (v == 0 && setup.sign > 0.0).then(|| max_abs(&seen));
-                let knots = match v {
-                    0 if setup.plays_by_levels => {
-                        input_map_knots_by_levels(&seen, input_map_ramps(count))
-                    }
-                    0 => input_map_knots(&seen, input_map_ramps(count)),
+                let knots = match (v, &values) {
+                    (0, Some(l)) => input_map_knots_by_levels(&seen, l, input_map_ramps(count)),
+                    (0, None) => input_map_knots(&seen, input_map_ramps(count)),
                     _ => Vec::new(),
                 };
                 let ramps = knots
@@ -1029,7 +1027,11 @@ pub const FEWER_PLAYS: [usize; 4] = [19, 9, 5, 3];
 /// improvement loop the ladder named more hidden effects than the largest count that fits).
 /// A continuous input (sines, chirps, noise) has as many levels as samples.
 pub fn plays_determined(u: &[f64], plays: usize, variant: usize) -> usize {
-    let levels = levels(u).len();
+    plays_for_levels(levels(u).len(), plays, variant)
+}
+
+/// [`plays_determined`] for an input of `levels` distinct levels.
+fn plays_for_levels(levels: usize, plays: usize, variant: usize) -> usize {
     let ramps = |p: usize| if variant == 0 { input_map_ramps(p) } else { 0 };
     if 1 + plays + ramps(plays) <= levels {
         return plays;
@@ -1083,14 +1085,14 @@ mod tests {
             .map(|k| 5.0 + 4.0 * (k as f64 * 0.01).sin())
             .collect();
         assert_eq!(
-            input_map_knots_by_levels(&sine, 8),
+            input_map_knots_by_levels(&sine, &levels(&sine), 8),
             input_map_knots(&sine, 8)
         );
         let levels = [
             1.4752, 9.2164, 1.9056, 8.1608, 4.4683, 7.1358, 5.8024, 6.9184,
         ];
         let stairs: Vec<f64> = levels.iter().flat_map(|&l| [l; 50]).collect();
-        let knots = input_map_knots_by_levels(&stairs, 8);
+        let knots = input_map_knots_by_levels(&stairs, &super::levels(&stairs), 8);
         assert_eq!(knots.len(), 5, "{knots:?}");
         let mut sorted = levels.to_vec();
         sorted.sort_by(f64::total_cmp);

@@ -97,8 +97,7 @@ impl GreyBoxConfig {
             output_terms: of(&[Slot::OutputTerm]),
             previous: Vec::new(),
             parsimonious: self.options.parsimonious_creep,
-            // a ridge chosen or set bounds the hysteresis terms already
-            plays_by_levels: self.options.ridge == 0.0 && !self.options.choose_ridge,
+            plays_by_levels: self.plays_by_levels(),
         })
     }
 
@@ -250,10 +249,20 @@ impl GreyBoxConfig {
         Err(last)
     }
 
+    /// Paths get the plays their inputs' levels determine
+    /// ([`crate::effect::fitting::PathSetup::plays_by_levels`]): not with a ridge, chosen or
+    /// set, which bounds the hysteresis terms already.
+    fn plays_by_levels(&self) -> bool {
+        self.options.ridge == 0.0 && !self.options.choose_ridge
+    }
+
     /// The most play operators that a path gets on the samples [`GreyBoxConfig::fit`] fits,
     /// over the paths whose input reverses (`Effect::plays_supported`: few on a staircase of a
     /// few levels, which the fit gives that path alone); `None`: no effect sets a limit.
     pub fn plays_supported(&self, rec: &IoRecord) -> Option<usize> {
+        if !self.plays_by_levels() {
+            return None;
+        }
         let n = train_samples(rec.len(), self.options.train_fraction.clamp(1e-9, 1.0));
         let held = self.options.held_out.clone().unwrap_or(0..0);
         let fitted: Vec<Vec<f64>> = rec
