@@ -273,12 +273,13 @@ fn diagnose_and_compare_work_on_a_narx_model() {
         .iter()
         .map(|r| r["effect"].as_str().unwrap())
         .collect();
-    assert_eq!(ranked.len(), 6, "{v}");
+    assert_eq!(ranked.len(), 7, "{v}");
     for e in [
         "hysteresis",
         "creep",
         "dynamics",
         "viscous",
+        "spencer",
         "drift",
         "saturation",
     ] {

@@ -49,6 +49,7 @@ pub mod prandtl_ishlinskii;
 pub mod registry;
 pub mod saturation;
 pub mod spec;
+pub mod spencer;
 mod traits;
 pub mod viscous;
 

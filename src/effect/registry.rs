@@ -7,7 +7,8 @@
 use super::feature::{FeatureKind, FeatureSpec};
 use super::traits::Effect;
 use super::{
-    coupling, creep, drift, dynamics, hysteresis, saturation, viscous, EffectError, EffectName,
+    coupling, creep, drift, dynamics, hysteresis, saturation, spencer, viscous, EffectError,
+    EffectName,
 };
 use std::sync::RwLock;
 
@@ -18,6 +19,7 @@ static BUILTIN: &[&dyn Effect] = &[
     &dynamics::DynamicsEffect,
     &coupling::CouplingEffect,
     &viscous::ViscousEffect,
+    &spencer::SpencerEffect,
     &drift::DriftEffect,
     &saturation::SaturationEffect,
 ];

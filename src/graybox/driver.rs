@@ -918,6 +918,7 @@ mod tests {
             (1, "hysteresis,creep,dynamics"),
             (1, "prandtl-ishlinskii,dynamics,viscous"),
             (1, "hysteresis,viscous"),
+            (1, "spencer,creep"),
             (1, "creep"),
             (2, "hysteresis,dynamics,coupling"),
             (2, "bouc-wen,creep,coupling,viscous"),

@@ -14,51 +14,43 @@
 //! and so one viscous slope.
 //! With n = 1 the Bouc-Wen equation is homogeneous in z, so A is absorbed by alpha.
 //!
-//! Simulation: x linear within each sample (dx/dt its backward difference, as the simple
-//! model's), sub-steps of at most [`MAX_SUBSTEP`] s, z by a semi-implicit step that keeps it
-//! bounded for any step (the denominator is at least 1 when |Gamma| <= B), y by Euler.
+//! Simulation: the library's effect `spencer` (`src/effect/spencer.rs`: x linear within each
+//! sample, z semi-implicit, y by Euler) on a path whose linear gain is k1, with the offset f0,
+//! in sub-steps of at most 1 ms whatever the stiffness (the search below meets wild parameters:
+//! their simulation diverges and is refused instead of taking thousands of sub-steps).
 //! Fit: Levenberg-Marquardt on the free-run simulation error from rest (forward-difference
 //! Jacobian), from starts anchored on the simple model's fit of the same records.
 
 use super::*;
+use crate::effect::spencer::{self, SpencerSpec};
+use crate::effect::Operator;
 use crate::numeric::lm::{levenberg_marquardt, ForwardDifference, LeastSquares, LmSettings};
 
-/// The largest integration sub-step (s): the records' 1 ms (5 ms records take 5 sub-steps).
-/// On the measured damper (fitted on the 1 ms records), sub-steps of 0.1 ms instead moved the
-/// earthquake R^2 by at most 1.1e-3 per current (0.9415 against 0.9404 at 1.0 A).
-pub const MAX_SUBSTEP: f64 = 1e-3;
 /// Levenberg-Marquardt iterations from every start, then at most for the two best.
 const SCOUT_ITERATIONS: usize = 8;
 const MAX_ITERATIONS: usize = 60;
 
-/// The force of the full model from rest for a displacement `x` (mm) sampled at `ts` (s);
-/// non-finite parameters or a non-positive c0 + c1 give NaN.
+/// The force of the full model from rest for a displacement `x` (mm) sampled at `ts` (s): the
+/// library's effect ([`crate::effect::spencer`]) plus the spring k1 x and the offset f0;
+/// parameters it refuses (non-finite, |Gamma| > B...) or a non-positive c0 + c1 give NaN.
 pub fn simulate_full(p: &SpencerParams, x: &[f64], ts: f64) -> Vec<f64> {
     let cs = p.c0 + p.c1;
     if x.is_empty() || !(cs > 0.0 && ts > 0.0) || p.gamma.abs() > p.b {
         return vec![f64::NAN; x.len()];
     }
-    // (a period a rounding above a whole number of sub-steps takes no extra one)
-    let m = (ts / MAX_SUBSTEP * (1.0 - 1e-9)).ceil().max(1.0) as usize;
-    let h = ts / m as f64;
-    let (mut y, mut z) = (x[0], 0.0f64);
-    let mut f = Vec::with_capacity(x.len());
-    f.push(p.k1 * x[0] + p.f0);
-    for k in 1..x.len() {
-        let v = (x[k] - x[k - 1]) / ts;
-        let mut yd = 0.0;
-        for s in 0..m {
-            let xs = x[k - 1] + v * h * (s as f64 + 0.5);
-            yd = (p.alpha * z + p.c0 * v + p.k0 * (xs - y)) / cs;
-            let du = (v - yd) * h;
-            let sg = if z >= 0.0 { 1.0 } else { -1.0 };
-            z = (z + du) / (1.0 + p.b * du.abs() + p.gamma * du * sg);
-            yd = (p.alpha * z + p.c0 * v + p.k0 * (xs - y)) / cs;
-            y += yd * h;
-        }
-        f.push(p.c1 * yd + p.k1 * x[k] + p.f0);
-    }
-    f
+    let spec = SpencerSpec {
+        c0: p.c0,
+        c1: p.c1,
+        k0: p.k0,
+        alpha: p.alpha,
+        b: p.b,
+        gamma: p.gamma,
+    };
+    let m = spencer::substeps_by_time(ts);
+    let Ok(mut op) = spec.check().and_then(|s| s.operator_in_substeps(ts, m)) else {
+        return vec![f64::NAN; x.len()];
+    };
+    x.iter().map(|&v| op.step(v) + p.k1 * v + p.f0).collect()
 }
 
 /// Scales of a set of records that make the search coordinates dimensionless: the largest
