@@ -315,6 +315,10 @@ fn spencer_plant() -> Plant {
         .unwrap()
 }
 
+/// Two sines of the damper's stroke (5 and 2 mm at 0.7 and 3.1 Hz), 12 s at 1 kHz.
+const DAMPER_SINES: &str = r#"{"name":"two sines","sampling_period_s":0.001,"samples":12000,"seed":4,
+ "inputs":[{"sum":[{"sine":{"amplitude":5,"frequency_hz":0.7}},{"sine":{"amplitude":2,"frequency_hz":3.1,"phase_rad":1}}]}]}"#;
+
 fn spencer_record(scenario: &str, noise: f64) -> IoRecord {
     let mut s = ScenarioSpec::parse(Path::new("s.json"), scenario).unwrap();
     s.noise_std = hystbench::scenario::NoiseLevel::All(noise);
@@ -332,11 +336,7 @@ fn spencer_record(scenario: &str, noise: f64) -> IoRecord {
 /// fitted on the same record does far worse.
 #[test]
 fn spencer_damper_is_recovered_and_predicts_another_motion() {
-    let train = spencer_record(
-        r#"{"name":"two sines","sampling_period_s":0.001,"samples":12000,"seed":4,
- "inputs":[{"sum":[{"sine":{"amplitude":5,"frequency_hz":0.7}},{"sine":{"amplitude":2,"frequency_hz":3.1,"phase_rad":1}}]}]}"#,
-        2.0,
-    );
+    let train = spencer_record(DAMPER_SINES, 2.0);
     let test = spencer_record(
         r#"{"name":"other sines","sampling_period_s":0.001,"samples":12000,"seed":5,
  "inputs":[{"sum":[{"sine":{"amplitude":8,"frequency_hz":0.3}},{"sine":{"amplitude":1,"frequency_hz":2.3}},{"sine":{"amplitude":0.4,"frequency_hz":6.1,"phase_rad":2}}]}]}"#,
@@ -385,11 +385,7 @@ fn spencer_damper_is_recovered_and_predicts_another_motion() {
 #[test]
 fn the_loop_adds_spencer_to_the_simple_damper_model() {
     use hystbench::improve::{improve, ImproveOptions};
-    let rec = spencer_record(
-        r#"{"name":"two sines","sampling_period_s":0.001,"samples":12000,"seed":4,
- "inputs":[{"sum":[{"sine":{"amplitude":5,"frequency_hz":0.7}},{"sine":{"amplitude":2,"frequency_hz":3.1,"phase_rad":1}}]}]}"#,
-        2.0,
-    );
+    let rec = spencer_record(DAMPER_SINES, 2.0);
     let start_config = GreyBoxConfig::from_effect_list("bouc-wen,viscous").unwrap();
     let start = start_config.fit(&rec).unwrap();
     let ladder = improve(
