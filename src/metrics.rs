@@ -230,6 +230,11 @@ fn t_below(v: &[f64]) -> bool {
     m / (var / k).sqrt() < -T_7_95
 }
 
+/// The largest magnitude of a signal (0 for an empty one).
+pub fn max_abs(x: &[f64]) -> f64 {
+    x.iter().fold(0.0f64, |a, v| a.max(v.abs()))
+}
+
 /// Peak-to-peak range of a signal.
 pub fn ptp(x: &[f64]) -> f64 {
     let (lo, hi) = x

@@ -159,12 +159,12 @@ pub static PLAY: FeatureKind = FeatureKind {
 
 /// Thresholds spread over the input range: r_k = k R / (n + 1), k = 1..n, R = max |u|.
 pub fn pi_thresholds(u: &[f64], n: usize) -> Vec<f64> {
-    let r = u.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let r = crate::metrics::max_abs(u);
     (1..=n).map(|k| k as f64 * r / (n + 1) as f64).collect()
 }
 
 fn max_abs(u: &[f64]) -> f64 {
-    u.iter().fold(0.0f64, |a, v| a.max(v.abs())).max(1e-300)
+    crate::metrics::max_abs(u).max(1e-300)
 }
 
 fn plays_of(u: &[f64], thresholds: &[f64]) -> Vec<Vec<f64>> {

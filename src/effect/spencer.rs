@@ -34,6 +34,7 @@ use super::fitting::{
 };
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
 use super::{finite, non_negative, positive, Effect, EffectError, EffectName, Operator, Slot};
+use crate::metrics::max_abs;
 use serde::{Deserialize, Serialize};
 use std::borrow::Cow;
 
@@ -252,7 +253,7 @@ fn features_of(u: &[f64], j: usize, ts: f64) -> Vec<FeatureSpec> {
     BANK_SHAPES
         .iter()
         .map(|&(tau, br)| {
-            let p = term.unit(&bank_theta(tau, br));
+            let p = term.unit(&theta(0.05, tau, br, 0.0));
             FeatureSpec::new(&FORCE, j, vec![p.c0, p.k0, p.alpha, p.b, p.gamma])
         })
         .collect()
@@ -318,17 +319,11 @@ impl TermFit for SpencerTerm<'_> {
     /// element's stiffness; B range 1, 10, 100; Gamma / B -0.5 or 0.5.
     fn start_grid(&self) -> Vec<Vec<f64>> {
         let mut g = Vec::new();
-        for br in [10.0f64, 1.0, 100.0] {
+        for br in [10.0, 1.0, 100.0] {
             for tau in [30.0, 3.0, 300.0] {
                 for c0 in [0.05, 0.5] {
-                    for ratio in [-0.5f64, 0.5] {
-                        g.push(vec![
-                            log_bounded_inv(c0, 1e-4, 1e2),
-                            log_bounded_inv(tau, 0.1, 1e6),
-                            log_bounded_inv(0.01, 1e-6, 1.0),
-                            br.ln(),
-                            ratio.atanh(),
-                        ]);
+                    for ratio in [-0.5, 0.5] {
+                        g.push(theta(c0, tau, br, ratio).to_vec());
                     }
                 }
             }
@@ -396,26 +391,22 @@ pub fn basis(ctx: &BasisContext) -> BasisBank {
     for (tau, br) in BANK_SHAPES {
         bank.push(
             format!("spencer(u, pre-yield {tau} samples, B range {br})"),
-            term.column(&bank_theta(tau, br)),
+            term.column(&theta(0.05, tau, br, 0.0)),
         );
     }
     bank
 }
 
-/// The term's parameters of a bank shape: c0 / c1 = 0.05, pre-yield time `tau` samples, k0 a
-/// hundredth of the element's stiffness, B times the range `br`, Gamma = 0.
-fn bank_theta(tau: f64, br: f64) -> [f64; 5] {
+/// The term's transformed parameters of a shape: c0 / c1, pre-yield time `tau` samples, k0 a
+/// hundredth of the element's stiffness, B times the range `br`, Gamma / B.
+fn theta(c0_ratio: f64, tau: f64, br: f64, gamma_ratio: f64) -> [f64; 5] {
     [
-        log_bounded_inv(0.05, 1e-4, 1e2),
+        log_bounded_inv(c0_ratio, 1e-4, 1e2),
         log_bounded_inv(tau, 0.1, 1e6),
         log_bounded_inv(0.01, 1e-6, 1.0),
-        br.ln(),
-        0.0,
+        f64::ln(br),
+        f64::atanh(gamma_ratio),
     ]
-}
-
-fn max_abs(u: &[f64]) -> f64 {
-    u.iter().fold(0.0f64, |a, v| a.max(v.abs()))
 }
 
 /// Spencer's MR damper as an effect of the library.

@@ -32,12 +32,9 @@ const MAX_ITERATIONS: usize = 60;
 
 /// The force of the full model from rest for a displacement `x` (mm) sampled at `ts` (s): the
 /// library's effect ([`crate::effect::spencer`]) plus the spring k1 x and the offset f0;
-/// parameters it refuses (non-finite, |Gamma| > B...) or a non-positive c0 + c1 give NaN.
+/// parameters the effect refuses (a negative dashpot, |Gamma| > B, a non-finite value) or a
+/// period <= 0 give NaN.
 pub fn simulate_full(p: &SpencerParams, x: &[f64], ts: f64) -> Vec<f64> {
-    let cs = p.c0 + p.c1;
-    if x.is_empty() || !(cs > 0.0 && ts > 0.0) || p.gamma.abs() > p.b {
-        return vec![f64::NAN; x.len()];
-    }
     let spec = SpencerSpec {
         c0: p.c0,
         c1: p.c1,
