@@ -7,7 +7,7 @@ use hystbench::plant::EffectSpecs;
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{hystbench as run, stderr, write};
+use common::{hystbench as run, s, stderr, write};
 
 /// A hidden-plant-like 1-DoF: Bouc-Wen (about 12 % hysteresis), 1.5 %/decade creep, 80 Hz mode.
 const PLANT_1: &str = r#"{"name": "p1", "inputs": ["u"], "outputs": [{"name": "y", "offset": 2.0,
@@ -390,4 +390,79 @@ fn model_files_round_trip_and_damaged_ones_are_refused() {
     let bad = text.replacen("\"thresholds\": [", "\"thresholds\": [-1.0, ", 1);
     let e = FittedGreyBox::parse(&out, &bad).unwrap_err().to_string();
     assert!(e.contains("thresholds"), "{e}");
+}
+
+/// `hystbench` with the machine's available memory set to `bytes`
+/// (`hystbench::data::memory::AVAILABLE_VARIABLE`).
+fn run_with_memory(bytes: u64, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_hystbench"))
+        .args(args)
+        .env(
+            hystbench::data::memory::AVAILABLE_VARIABLE,
+            bytes.to_string(),
+        )
+        .output()
+        .expect("run hystbench")
+}
+
+#[test]
+fn a_record_too_large_for_memory_is_refused_before_the_work() {
+    use hystbench::data::memory::Work;
+    let dir = tempfile::tempdir().unwrap();
+    let n = 20_000;
+    let data = csv(dir.path(), "long.csv", n, 2.0, false);
+    let text = std::fs::metadata(&data).unwrap().len();
+    let fit_needs = Work::GreyBoxFit.bytes(n, 1, 3);
+    assert!(
+        2 * text < fit_needs,
+        "the test needs a fit that outgrows the reading"
+    );
+    let out = dir.path().join("m.json");
+    let fit = |available: u64| {
+        run_with_memory(
+            available,
+            &[
+                "fit",
+                "--data",
+                s(&data),
+                "--effects",
+                "hysteresis",
+                "--out",
+                s(&out),
+            ],
+        )
+    };
+    // room to read the file but not to fit it: refused with the size, both figures, advice
+    let o = fit(2 * text + 1);
+    let e = stderr(&o);
+    assert!(!o.status.success() && !out.exists(), "{e}");
+    for needle in [
+        "long.csv",
+        "a grey-box fit on 20000 samples needs about",
+        "available",
+        "--train-fraction",
+    ] {
+        assert!(e.contains(needle), "`{needle}` missing from: {e}");
+    }
+    // not even room to read it: refused before reading, by the file's size
+    let o = run_with_memory(
+        text,
+        &[
+            "plot",
+            "loop",
+            "--data",
+            s(&data),
+            "--out",
+            s(&dir.path().join("l.png")),
+        ],
+    );
+    let e = stderr(&o);
+    assert!(
+        !o.status.success() && e.contains("reading the file needs about"),
+        "{e}"
+    );
+    assert!(!dir.path().join("l.png").exists());
+    // with the room the estimate asks for, the fit runs
+    let o = fit(fit_needs + 2 * text);
+    assert!(o.status.success() && out.exists(), "{}", stderr(&o));
 }

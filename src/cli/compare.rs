@@ -35,8 +35,9 @@ pub fn predict_record(
     data: &std::path::Path,
     outliers: Outliers,
     model: &dyn Model,
+    work: crate::cli::Work,
 ) -> anyhow::Result<(IoRecord, Vec<Vec<f64>>)> {
-    let io = crate::cli::read_screened(data, outliers, |r| Ok(model.select(r)?))?;
+    let io = crate::cli::read_screened(data, outliers, work, |r| Ok(model.select(r)?))?;
     // said before predicting: a free run that extrapolates may diverge
     crate::cli::warn_outside(data, &model.outside(&io));
     let pred = predict_io(model, &io)?;
@@ -146,7 +147,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(dir) = &a.report {
         crate::cli::demo::prepare_report_folder(dir, a.force)?;
     }
-    let (io, pred) = predict_record(&a.data, a.screen.outliers, model.as_ref())?;
+    let (io, pred) = predict_record(
+        &a.data,
+        a.screen.outliers,
+        model.as_ref(),
+        crate::cli::Work::Prediction,
+    )?;
     let report = compare_model(model.as_ref(), &io, &pred)?;
     let bands = &report.half_widths;
     let md = markdown(model.as_ref(), &a.data, &report.outputs, &report.bands);

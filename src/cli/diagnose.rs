@@ -85,7 +85,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let loaded = LoadedModel::load(&a.model)?;
     let model = loaded.as_model();
-    let (io, pred) = predict_record(&a.data, a.screen.outliers, model)?;
+    let (io, pred) = predict_record(
+        &a.data,
+        a.screen.outliers,
+        model,
+        crate::cli::Work::Diagnosis,
+    )?;
     let mut opts = DiagnoseOptions::default();
     if a.no_refit {
         opts.refit = None;

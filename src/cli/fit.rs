@@ -55,14 +55,19 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let cfg =
         GreyBoxConfig::from_effect_list(&a.effects)?.with_fit_options(a.plays, a.train_fraction)?;
     check_writable(&a.out, a.force)?;
-    let io = crate::cli::read_screened(&a.data, a.screen.outliers, |r| {
-        Ok(IoRecord::from_record(
-            r,
-            Some(&a.inputs),
-            Some(&a.outputs),
-            true,
-        )?)
-    })?;
+    let io = crate::cli::read_screened(
+        &a.data,
+        a.screen.outliers,
+        crate::cli::Work::GreyBoxFit,
+        |r| {
+            Ok(IoRecord::from_record(
+                r,
+                Some(&a.inputs),
+                Some(&a.outputs),
+                true,
+            )?)
+        },
+    )?;
     let spinner = crate::cli::progress::Progress::spinner(
         &format!("fitting {} to {} samples", cfg.effect_list(), io.len()),
         a.quiet,

@@ -167,7 +167,7 @@ pub fn load_records(
 ) -> anyhow::Result<(IoRecord, IoRecord)> {
     let sel = |v: &[String]| (!v.is_empty()).then(|| v.to_vec());
     let (i, o) = (sel(inputs), sel(outputs));
-    let rec = crate::cli::read_screened(data, outliers, |r| {
+    let rec = crate::cli::read_screened(data, outliers, crate::cli::Work::Identification, |r| {
         Ok(IoRecord::from_record(r, i.as_deref(), o.as_deref(), true)?)
     })?;
     match test {
@@ -175,7 +175,7 @@ pub fn load_records(
         Some(t) => {
             let names_i = rec.input_names();
             let names_o = rec.output_names();
-            let te = crate::cli::read_screened(t, outliers, |r| {
+            let te = crate::cli::read_screened(t, outliers, crate::cli::Work::Prediction, |r| {
                 Ok(IoRecord::from_record(
                     r,
                     Some(&names_i),

@@ -97,7 +97,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     opts.check()?;
     crate::cli::demo::prepare_report_folder(&a.out, a.force)?;
     let model: Box<dyn Model> = load_model(&a.model)?;
-    let io_all = crate::cli::read_screened(&a.data, a.screen.outliers, |r| Ok(model.select(r)?))?;
+    let io_all = crate::cli::read_screened(
+        &a.data,
+        a.screen.outliers,
+        crate::cli::Work::Diagnosis,
+        |r| Ok(model.select(r)?),
+    )?;
     let Ladder {
         mut rungs,
         prediction: pred,

@@ -51,6 +51,7 @@ pub fn run(args: PredictArgs) -> anyhow::Result<()> {
     let mut rec = rec;
     rec.outputs
         .retain(|s| model.config.outputs.contains(&s.name));
+    crate::cli::check_memory(&args.data, &rec, crate::cli::Work::Prediction)?;
     crate::cli::warn_outside(&args.data, &model.outside(&rec));
     let preds = model.predict(&rec, args.mode)?;
     for p in &preds {

@@ -71,6 +71,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let sim = match (&a.scenario, &a.input) {
         (Some(s), _) => {
             let scenario = Scenario::from_file(s)?;
+            let columns = 1 + plant.spec.inputs.len() + plant.spec.outputs.len();
+            hystbench::data::memory::check(
+                s,
+                crate::cli::Work::Prediction,
+                scenario.spec.samples,
+                plant.spec.inputs.len(),
+                columns,
+            )?;
             simulate_scenario(&plant, &scenario, a.seed)?
         }
         (None, Some(input)) => {
@@ -86,6 +94,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 Vec::new()
             };
             let io = IoRecord::from_record(&rec, Some(&cols), None, false)?;
+            crate::cli::check_memory(input, &io, crate::cli::Work::Prediction)?;
             simulate_recorded(&plant, &io, a.noise, a.seed.unwrap_or(0))?
         }
         (None, None) => unreachable!("clap requires --scenario or --input"),

@@ -19,6 +19,7 @@ pub struct Record {
 
 /// Read a CSV file with a header row and numeric cells.
 pub fn read_csv(path: &Path) -> Result<Record, DataError> {
+    super::memory::check_file(path)?;
     let text = std::fs::read_to_string(path).map_err(|source| DataError::Read {
         path: path.to_path_buf(),
         source,

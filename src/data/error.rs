@@ -4,6 +4,15 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum DataError {
+    #[error("{path}: {what}{} needs about {} of memory, and this machine has {} available: {advice}, or a machine with more memory (HYSTBENCH_MEMORY_AVAILABLE=BYTES sets the figure to go by)", samples_text(*samples), super::memory::human(*needed), super::memory::human(*available))]
+    TooLarge {
+        path: PathBuf,
+        what: String,
+        advice: &'static str,
+        samples: usize,
+        needed: u64,
+        available: u64,
+    },
     #[error("{path}: cannot read: {source}")]
     Read {
         path: PathBuf,
@@ -129,4 +138,13 @@ pub enum DataError {
         row: usize,
         value: f64,
     },
+}
+
+/// " on N samples" (nothing when the size is not yet known).
+fn samples_text(samples: usize) -> String {
+    if samples == 0 {
+        String::new()
+    } else {
+        format!(" on {samples} samples")
+    }
 }

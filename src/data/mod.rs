@@ -16,6 +16,7 @@ mod split;
 mod write;
 
 pub mod inspect;
+pub mod memory;
 pub use csv::{parse_csv, read_csv, CsvFormat, Record, TimeSteps};
 pub use error::DataError;
 pub use io_record::default_names;
