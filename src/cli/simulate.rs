@@ -2,7 +2,7 @@
 //! with a JSON sidecar.
 
 use anyhow::Context;
-use hystbench::data::{format_csv, IoRecord, OutputGuard};
+use hystbench::data::{IoRecord, OutputGuard};
 use hystbench::plant::Plant;
 use hystbench::scenario::Scenario;
 use hystbench::simulator::{simulate_recorded, simulate_scenario, Simulation};
@@ -46,10 +46,9 @@ pub fn sidecar_path(out: &Path) -> PathBuf {
 /// Write a simulation as CSV + sidecar, atomically and together.
 pub fn write_simulation(sim: &Simulation, out: &Path, force: bool) -> anyhow::Result<()> {
     let (names, cols) = sim.record.to_columns();
-    let csv = format_csv(out, &names, &cols)?;
     let side = sidecar_path(out);
     let mut g = OutputGuard::new(force);
-    g.stage(out, csv.as_bytes())?;
+    g.stage_csv(out, &names, &cols)?;
     g.stage(
         &side,
         (serde_json::to_string_pretty(&sim.provenance)? + "\n").as_bytes(),

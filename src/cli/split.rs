@@ -1,7 +1,7 @@
 //! `hystbench split`: cut a record at its time gaps and resample each part onto a uniform grid,
 //! one CSV per part, so that records with logger pauses or jittered time stamps can be used.
 
-use hystbench::data::{format_csv, split_at_gaps, OutputGuard};
+use hystbench::data::{split_at_gaps, OutputGuard};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -60,8 +60,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     for (i, p) in split.parts.iter().enumerate() {
         let path = a.out.join(format!("{stem}_part{}.csv", i + 1));
-        let text = format_csv(&path, &rec.names, &p.columns)?;
-        guard.stage(&path, text.as_bytes())?;
+        guard.stage_csv(&path, &rec.names, &p.columns)?;
         let _ = writeln!(
             table,
             "| {} | {} | {}..{} | {} | {} | {:.3e} |",

@@ -59,17 +59,41 @@ impl OutputGuard {
 
     /// Stage `bytes` for `path`.
     pub fn stage(&mut self, path: &Path, bytes: &[u8]) -> Result<(), DataError> {
+        self.stage_with(path, |w| w.write_all(bytes))
+    }
+
+    /// Stage the CSV of `columns` (headed by `names`) for `path`, written row by row: the text
+    /// is never held whole (a long record's is about 20 bytes a value). Non-finite values are
+    /// refused before anything is written, as [`format_csv`] refuses them.
+    pub fn stage_csv(
+        &mut self,
+        path: &Path,
+        names: &[String],
+        columns: &[Vec<f64>],
+    ) -> Result<(), DataError> {
+        check_finite(path, names, columns)?;
+        self.stage_with(path, |w| write_rows(w, names, columns))
+    }
+
+    /// Stage what `write` writes for `path` (buffered; a temporary beside it, removed when the
+    /// guard is dropped uncommitted, or at once when the write fails).
+    fn stage_with(
+        &mut self,
+        path: &Path,
+        write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+    ) -> Result<(), DataError> {
         check_writable(path, self.force)?;
         let tmp = temp_path(path);
         let werr = |source| DataError::Write {
             path: path.to_path_buf(),
             source,
         };
-        let mut f = std::fs::File::create(&tmp).map_err(werr)?;
-        f.write_all(bytes).map_err(werr)?;
-        f.sync_all().map_err(werr)?;
+        let f = std::fs::File::create(&tmp).map_err(werr)?;
         self.staged.push((tmp, path.to_path_buf()));
-        Ok(())
+        let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
+        write(&mut w).map_err(werr)?;
+        let f = w.into_inner().map_err(|e| werr(e.into_error()))?;
+        f.sync_all().map_err(werr)
     }
 
     /// Rename every staged file into place.
@@ -99,36 +123,53 @@ pub fn write_atomic(path: &Path, bytes: &[u8], force: bool) -> Result<(), DataEr
     g.commit()
 }
 
-/// Format columns as CSV text, refusing non-finite values.
+/// Format columns as CSV text, refusing non-finite values (the text of
+/// [`OutputGuard::stage_csv`]).
 pub fn format_csv(
     path: &Path,
     names: &[String],
     columns: &[Vec<f64>],
 ) -> Result<String, DataError> {
+    check_finite(path, names, columns)?;
     let n = columns.first().map_or(0, Vec::len);
-    let mut s = String::with_capacity(n * names.len() * 20);
-    s.push_str(&names.join(","));
-    s.push('\n');
+    let mut s = Vec::with_capacity(n * names.len() * 20);
+    write_rows(&mut s, names, columns).expect("writing to memory");
+    Ok(String::from_utf8(s).expect("numbers and the caller's names are UTF-8"))
+}
+
+/// The first non-finite value of `columns` in row order (the row the file would have it on).
+fn check_finite(path: &Path, names: &[String], columns: &[Vec<f64>]) -> Result<(), DataError> {
+    let n = columns.first().map_or(0, Vec::len);
+    let first = columns
+        .iter()
+        .enumerate()
+        .filter_map(|(j, c)| c.iter().position(|v| !v.is_finite()).map(|k| (k, j)))
+        .min();
+    match first {
+        Some((k, j)) if k < n => Err(DataError::NonFiniteOutput {
+            path: path.to_path_buf(),
+            column: names[j].clone(),
+            row: k + 1,
+            value: columns[j][k],
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// The header and one line per sample: values in Rust's shortest round-trip form.
+fn write_rows(w: &mut dyn Write, names: &[String], columns: &[Vec<f64>]) -> std::io::Result<()> {
+    let n = columns.first().map_or(0, Vec::len);
+    writeln!(w, "{}", names.join(","))?;
     for k in 0..n {
         for (j, c) in columns.iter().enumerate() {
-            let v = c[k];
-            if !v.is_finite() {
-                return Err(DataError::NonFiniteOutput {
-                    path: path.to_path_buf(),
-                    column: names[j].clone(),
-                    row: k + 1,
-                    value: v,
-                });
-            }
             if j > 0 {
-                s.push(',');
+                w.write_all(b",")?;
             }
-            use std::fmt::Write as _;
-            let _ = write!(s, "{v}");
+            write!(w, "{}", c[k])?;
         }
-        s.push('\n');
+        w.write_all(b"\n")?;
     }
-    Ok(s)
+    Ok(())
 }
 
 /// Write columns as CSV atomically.
@@ -138,8 +179,9 @@ pub fn write_csv_atomic(
     columns: &[Vec<f64>],
     force: bool,
 ) -> Result<(), DataError> {
-    let text = format_csv(path, names, columns)?;
-    write_atomic(path, text.as_bytes(), force)
+    let mut g = OutputGuard::new(force);
+    g.stage_csv(path, names, columns)?;
+    g.commit()
 }
 
 #[cfg(test)]
@@ -162,11 +204,31 @@ mod tests {
     }
 
     #[test]
+    fn a_streamed_csv_is_the_formatted_text() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.csv");
+        let names = vec!["t".to_string(), "y".to_string()];
+        let cols = vec![vec![0.0, 0.001, 0.002], vec![1.5, -2.25e-7, 1e3]];
+        write_csv_atomic(&p, &names, &cols, false).unwrap();
+        let text = format_csv(&p, &names, &cols).unwrap();
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), text);
+        assert_eq!(text, "t,y\n0,1.5\n0.001,-0.000000225\n0.002,1000\n");
+    }
+
+    #[test]
     fn non_finite_values_are_refused() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("a.csv");
         let e = write_csv_atomic(&p, &["y".into()], &[vec![1.0, f64::NAN]], false).unwrap_err();
         assert!(e.to_string().contains("row 2"), "{e}");
         assert!(!p.exists());
+        // the first in row order, whatever the column
+        let cols = [vec![1.0, 2.0, f64::INFINITY], vec![1.0, f64::NAN, 3.0]];
+        let e = format_csv(&p, &["a".into(), "b".into()], &cols).unwrap_err();
+        assert!(
+            e.to_string().contains("row 2") && e.to_string().contains("`b`"),
+            "{e}"
+        );
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     }
 }
