@@ -195,16 +195,13 @@ fn write_out(r: &MrDamperResult, dir: &Path, force: bool) -> anyhow::Result<()> 
             names.push(format!("F_{}_N", v.name().replace(' ', "_")));
             cols.push(v.predictions[k].clone());
         }
-        let text = hystbench::data::format_csv(&path, &names, &cols)?;
-        guard.stage(&path, text.as_bytes())?;
+        guard.stage_csv(&path, &names, &cols)?;
         if let Some(p) = &r.narx_predictions[k] {
             let path = dir.join(format!("narx_I{i:.1}A.csv"));
             let t: Vec<f64> = (0..p.len())
                 .map(|j| j as f64 * 1e-3 * NARX_DECIMATION as f64)
                 .collect();
-            let text =
-                hystbench::data::format_csv(&path, &["t_s".into(), "F_N".into()], &[t, p.clone()])?;
-            guard.stage(&path, text.as_bytes())?;
+            guard.stage_csv(&path, &["t_s".into(), "F_N".into()], &[t, p.clone()])?;
         }
     }
     let path = dir.join("mr_damper_result.json");
