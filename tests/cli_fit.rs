@@ -414,7 +414,7 @@ fn a_record_too_large_for_memory_is_refused_before_the_work() {
     let text = std::fs::metadata(&data).unwrap().len();
     let fit_needs = Work::GreyBoxFit.bytes(n, 1, 3);
     assert!(
-        2 * text < fit_needs,
+        text < fit_needs,
         "the test needs a fit that outgrows the reading"
     );
     let out = dir.path().join("m.json");
@@ -433,7 +433,7 @@ fn a_record_too_large_for_memory_is_refused_before_the_work() {
         )
     };
     // room to read the file but not to fit it: refused with the size, both figures, advice
-    let o = fit(2 * text + 1);
+    let o = fit(text + 1);
     let e = stderr(&o);
     assert!(!o.status.success() && !out.exists(), "{e}");
     for needle in [
@@ -446,7 +446,7 @@ fn a_record_too_large_for_memory_is_refused_before_the_work() {
     }
     // not even room to read it: refused before reading, by the file's size
     let o = run_with_memory(
-        text,
+        text - 1,
         &[
             "plot",
             "loop",
@@ -463,6 +463,6 @@ fn a_record_too_large_for_memory_is_refused_before_the_work() {
     );
     assert!(!dir.path().join("l.png").exists());
     // with the room the estimate asks for, the fit runs
-    let o = fit(fit_needs + 2 * text);
+    let o = fit(fit_needs + text);
     assert!(o.status.success() && out.exists(), "{}", stderr(&o));
 }

@@ -17,14 +17,19 @@ pub struct Record {
     pub format: CsvFormat,
 }
 
-/// Read a CSV file with a header row and numeric cells.
+/// Read a CSV file with a header row and numeric cells, line by line (the file's text is never
+/// held whole: a long record needs its columns' memory, not its text's as well).
 pub fn read_csv(path: &Path) -> Result<Record, DataError> {
+    use std::io::BufRead;
     super::memory::check_file(path)?;
-    let text = std::fs::read_to_string(path).map_err(|source| DataError::Read {
+    let read_error = |source| DataError::Read {
         path: path.to_path_buf(),
         source,
-    })?;
-    parse_csv(path, &text)
+    };
+    let file = std::fs::File::open(path).map_err(read_error)?;
+    let size = file.metadata().map_or(0, |m| m.len() as usize);
+    let lines = std::io::BufReader::with_capacity(1 << 16, file).lines();
+    parse_lines(path, lines, size)
 }
 
 /// Parse CSV text (see [`read_csv`]); `path` only labels the errors. Beyond a plain
@@ -33,18 +38,44 @@ pub fn read_csv(path: &Path) -> Result<Record, DataError> {
 /// header), decimal commas with them, a trailing separator on every line, and units in the
 /// header (`displacement [um]`, `u (V)`). Line numbers in errors are the file's.
 pub fn parse_csv(path: &Path, text: &str) -> Result<Record, DataError> {
+    parse_lines(path, text.lines().map(Ok), text.len())
+}
+
+/// [`parse_csv`] over the lines of a text of about `size` bytes, in one pass.
+fn parse_lines<L: AsRef<str>>(
+    path: &Path,
+    lines: impl Iterator<Item = std::io::Result<L>>,
+    size: usize,
+) -> Result<Record, DataError> {
     let p = || path.to_path_buf();
     let comment = |l: &str| {
         l.trim_start()
             .trim_start_matches('\u{feff}')
             .starts_with('#')
     };
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty() && !comment(l));
-    let (header_at, header) = lines.next().ok_or(DataError::Empty { path: p() })?;
-    let header = header.trim_start_matches('\u{feff}');
+    // blank and comment lines are counted (comments) and, after the first data row, listed
+    let mut comment_lines = 0;
+    let mut skipped = Vec::new();
+    // the line of the first data row (set by the loop below, read by the filter)
+    let first_line = std::cell::Cell::new(0);
+    let mut lines = lines.enumerate().filter_map(|(idx, l)| match l {
+        Err(source) => Some(Err(DataError::Read { path: p(), source })),
+        Ok(l) => {
+            let line = l.as_ref();
+            let is_comment = comment(line);
+            comment_lines += usize::from(is_comment);
+            if line.trim().is_empty() || is_comment {
+                if first_line.get() != 0 {
+                    skipped.push(idx + 1);
+                }
+                None
+            } else {
+                Some(Ok((idx, l)))
+            }
+        }
+    });
+    let (header_at, header) = lines.next().ok_or(DataError::Empty { path: p() })??;
+    let header = header.as_ref().trim_start_matches('\u{feff}');
     let sep = separator_of(header);
     let mut raw: Vec<&str> = header.split(sep).collect();
     let trailing_separator = raw.len() > 1 && raw.last().is_some_and(|n| n.trim().is_empty());
@@ -70,13 +101,14 @@ pub fn parse_csv(path: &Path, text: &str) -> Result<Record, DataError> {
         }
     }
     let mut decimal_comma = false;
-    let mut first_line = 0;
     let mut columns: Vec<Vec<f64>> =
-        vec![Vec::with_capacity(text.len() / (8 * names.len()) + 1); names.len()];
-    for (idx, line) in lines {
+        vec![Vec::with_capacity(size / (8 * names.len()) + 1); names.len()];
+    for next in lines.by_ref() {
+        let (idx, line) = next?;
+        let line = line.as_ref();
         let line_no = idx + 1;
-        if first_line == 0 {
-            first_line = line_no;
+        if first_line.get() == 0 {
+            first_line.set(line_no);
         }
         let mut found = 0;
         for (j, cell) in line.split(sep).enumerate() {
@@ -130,6 +162,8 @@ pub fn parse_csv(path: &Path, text: &str) -> Result<Record, DataError> {
     if columns[0].is_empty() {
         return Err(DataError::Empty { path: p() });
     }
+    drop(lines);
+    let first_line = first_line.get();
     Ok(Record {
         path: path.to_path_buf(),
         names,
@@ -137,17 +171,11 @@ pub fn parse_csv(path: &Path, text: &str) -> Result<Record, DataError> {
         format: CsvFormat {
             separator: sep,
             decimal_comma,
-            comment_lines: text.lines().filter(|l| comment(l)).count(),
+            comment_lines,
             trailing_separator,
             units,
             first_line,
-            skipped: text
-                .lines()
-                .enumerate()
-                .skip(first_line)
-                .filter(|(_, l)| l.trim().is_empty() || comment(l))
-                .map(|(i, _)| i + 1)
-                .collect(),
+            skipped,
         },
     })
 }

@@ -124,16 +124,16 @@ pub fn check(
     check_need(path, work.what(), advice, samples, needed)
 }
 
-/// Whether reading the file at `path` (its text, then its columns) fits in the available
-/// memory. The parsed columns take at most about as much as the text (a number of eight bytes
-/// for each cell of at least two characters with its separator) and are estimated so.
+/// Whether reading the file at `path` fits in the available memory. It is read line by line
+/// (`read_csv`), so what it needs is its parsed columns: eight bytes a cell, reserved at one
+/// cell per eight bytes of text, about the file's size for cells of eight characters or more.
 pub fn check_file(path: &Path) -> Result<(), DataError> {
     let Ok(meta) = std::fs::metadata(path) else {
         return Ok(()); // the read reports it
     };
     let text = meta.len();
     let advice = "cut the file into parts (its lines are samples: any text tool does it)";
-    check_need(path, "reading the file", advice, 0, text.saturating_mul(2))
+    check_need(path, "reading the file", advice, 0, text)
 }
 
 fn check_need(
