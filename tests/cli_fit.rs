@@ -440,7 +440,7 @@ fn a_record_too_large_for_memory_is_refused_before_the_work() {
         "long.csv",
         "a grey-box fit on 20000 samples needs about",
         "available",
-        "--train-fraction",
+        "hystbench split",
     ] {
         assert!(e.contains(needle), "`{needle}` missing from: {e}");
     }

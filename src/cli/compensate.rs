@@ -54,6 +54,14 @@ pub fn read_reference(
     columns: Option<&[String]>,
 ) -> anyhow::Result<Reference> {
     let rec = crate::cli::read_data(path)?;
+    let samples = rec.columns.first().map_or(0, Vec::len);
+    hystbench::data::memory::check(
+        path,
+        crate::cli::Work::Prediction,
+        samples,
+        model.input_names().len(),
+        rec.names.len(),
+    )?;
     let outputs = model.output_names();
     let names: Vec<String> = match columns {
         Some(c) => c.to_vec(),

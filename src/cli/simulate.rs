@@ -73,7 +73,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             let columns = 1 + plant.spec.inputs.len() + plant.spec.outputs.len();
             hystbench::data::memory::check(
                 s,
-                crate::cli::Work::Prediction,
+                crate::cli::Work::Simulation,
                 scenario.spec.samples,
                 plant.spec.inputs.len(),
                 columns,
@@ -93,7 +93,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 Vec::new()
             };
             let io = IoRecord::from_record(&rec, Some(&cols), None, false)?;
-            crate::cli::check_memory(input, &io, crate::cli::Work::Prediction)?;
+            crate::cli::check_memory(input, &io, crate::cli::Work::Simulation)?;
             simulate_recorded(&plant, &io, a.noise, a.seed.unwrap_or(0))?
         }
         (None, None) => unreachable!("clap requires --scenario or --input"),

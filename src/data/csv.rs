@@ -101,8 +101,9 @@ fn parse_lines<L: AsRef<str>>(
         }
     }
     let mut decimal_comma = false;
-    let mut columns: Vec<Vec<f64>> =
-        vec![Vec::with_capacity(size / (8 * names.len()) + 1); names.len()];
+    // (each column its own reservation: a cloned Vec keeps none)
+    let rows = size / (8 * names.len()) + 1;
+    let mut columns: Vec<Vec<f64>> = (0..names.len()).map(|_| Vec::with_capacity(rows)).collect();
     for next in lines.by_ref() {
         let (idx, line) = next?;
         let line = line.as_ref();

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum DataError {
-    #[error("{path}: {what}{} needs about {} of memory, and this machine has {} available: {advice}, or a machine with more memory (HYSTBENCH_MEMORY_AVAILABLE=BYTES sets the figure to go by)", samples_text(*samples), super::memory::human(*needed), super::memory::human(*available))]
+    #[error("{path}: {what}{} needs about {} of memory, and {} is available to it: {advice}, or a machine with more memory (HYSTBENCH_MEMORY_AVAILABLE=BYTES sets the figure to go by)", samples_text(*samples), super::memory::human(*needed), super::memory::human(*available))]
     TooLarge {
         path: PathBuf,
         what: String,

@@ -35,8 +35,11 @@ pub enum Work {
     /// `identify`: the network's regressors and the grey-box base (fitted on at most 20,000
     /// samples to choose, then on the fitting part).
     Identification,
-    /// `predict`, `compare`, `simulate`, `plot`: a prediction or a simulation and its output.
+    /// `predict`, `compare`, `compensate`, `track`: a prediction and its output (`plot` and
+    /// `inspect` hold little beyond the record: the reading's check covers them).
     Prediction,
+    /// `simulate`: the plant's states and the record written.
+    Simulation,
 }
 
 impl Work {
@@ -46,7 +49,15 @@ impl Work {
             Work::GreyBoxFit => 1_800,
             Work::Diagnosis => 2_400,
             Work::Identification => 400,
-            Work::Prediction => 250,
+            Work::Prediction | Work::Simulation => 250,
+        }
+    }
+
+    /// What to do about a record too large for this work.
+    pub const fn advice(self) -> &'static str {
+        match self {
+            Work::Simulation => "ask for fewer `samples` in the scenario (or simulate it in parts)",
+            _ => "use a part of the record (`hystbench split` at its gaps, or cut its lines) or fewer samples (decimate it)",
         }
     }
 
@@ -57,6 +68,7 @@ impl Work {
             Work::Diagnosis => "a diagnosis",
             Work::Identification => "an identification",
             Work::Prediction => "a prediction",
+            Work::Simulation => "a simulation",
         }
     }
 
@@ -68,12 +80,16 @@ impl Work {
     }
 }
 
-/// The memory available to this process, in bytes: [`AVAILABLE_VARIABLE`] when set, else the
-/// smaller of the kernel's `MemAvailable` and the control group's limit less its usage
-/// (cgroup v2, then v1); `None` where neither can be read (not Linux): no check.
+/// The memory available to this process, in bytes: [`AVAILABLE_VARIABLE`] when set to a whole
+/// number of bytes, else the smaller of the kernel's `MemAvailable` and the room its control
+/// groups leave (cgroup v2, the process's group and every parent; else v1); `None` where
+/// neither can be read (not Linux): no check.
 pub fn available_bytes() -> Option<u64> {
-    if let Ok(v) = std::env::var(AVAILABLE_VARIABLE) {
-        return v.trim().parse().ok();
+    if let Some(v) = std::env::var(AVAILABLE_VARIABLE)
+        .ok()
+        .and_then(|v| v.trim().parse().ok())
+    {
+        return Some(v);
     }
     let meminfo = std::fs::read_to_string("/proc/meminfo")
         .ok()
@@ -89,24 +105,65 @@ pub fn available_bytes() -> Option<u64> {
 fn mem_available(meminfo: &str) -> Option<u64> {
     let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
+    Some(kb.saturating_mul(1024))
 }
 
-/// The control group's limit less its usage (`None`: no limit, or not in one).
+/// The least room the control groups leave: limit less usage, where the usage does not count
+/// the page cache the kernel can reclaim (`inactive_file`, the working set that container
+/// runtimes report). Cgroup v2: the process's group (`/proc/self/cgroup`) and each parent up
+/// to the root; else v1's hierarchical limit. `None`: no limit, or not in a group.
 fn cgroup_room() -> Option<u64> {
-    let read = |p: &str| std::fs::read_to_string(p).ok();
-    let pair = |limit: &str, usage: &str| -> Option<u64> {
-        let limit: u64 = read(limit)?.trim().parse().ok()?; // "max": no limit
-        let usage: u64 = read(usage)?.trim().parse().ok()?;
-        Some(limit.saturating_sub(usage))
+    let read = |p: &Path| std::fs::read_to_string(p).ok();
+    let stat = |p: &Path, key: &str| -> u64 {
+        read(p)
+            .and_then(|t| {
+                t.lines()
+                    .find_map(|l| l.strip_prefix(key)?.strip_prefix(' ')?.trim().parse().ok())
+            })
+            .unwrap_or(0)
     };
-    pair("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current").or_else(|| {
-        pair(
-            "/sys/fs/cgroup/memory/memory.limit_in_bytes",
-            "/sys/fs/cgroup/memory/memory.usage_in_bytes",
+    let room = |limit: u64, usage: u64, reclaimable: u64| {
+        limit.saturating_sub(usage.saturating_sub(reclaimable))
+    };
+    // v2: every group from the process's own up to the root
+    let own = read(Path::new("/proc/self/cgroup")).and_then(|t| {
+        t.lines()
+            .find_map(|l| l.strip_prefix("0::").map(|p| p.trim().to_string()))
+    });
+    let root = Path::new("/sys/fs/cgroup");
+    let mut v2: Option<u64> = None;
+    if let Some(own) = own {
+        let mut dir = root.join(own.trim_start_matches('/'));
+        loop {
+            let limit = read(&dir.join("memory.max")).and_then(|t| t.trim().parse::<u64>().ok());
+            let usage =
+                read(&dir.join("memory.current")).and_then(|t| t.trim().parse::<u64>().ok());
+            if let (Some(limit), Some(usage)) = (limit, usage) {
+                let r = room(
+                    limit,
+                    usage,
+                    stat(&dir.join("memory.stat"), "inactive_file"),
+                );
+                v2 = Some(v2.map_or(r, |v| v.min(r)));
+            }
+            if dir == root || !dir.pop() || !dir.starts_with(root) {
+                break;
+            }
+        }
+    }
+    if v2.is_some() {
+        return v2;
+    }
+    // v1: the hierarchical limit (v1 reports "no limit" as a page-rounded i64::MAX)
+    let v1 = Path::new("/sys/fs/cgroup/memory");
+    let limit = stat(&v1.join("memory.stat"), "hierarchical_memory_limit");
+    let usage = read(&v1.join("memory.usage_in_bytes")).and_then(|t| t.trim().parse().ok())?;
+    (limit > 0 && limit < 1 << 60).then(|| {
+        room(
+            limit,
+            usage,
+            stat(&v1.join("memory.stat"), "total_inactive_file"),
         )
-        // v1 reports "no limit" as a page-rounded i64::MAX
-        .filter(|&room| room < 1 << 60)
     })
 }
 
@@ -120,8 +177,7 @@ pub fn check(
     columns: usize,
 ) -> Result<(), DataError> {
     let needed = work.bytes(samples, inputs, columns);
-    let advice = "use a part of the record (`hystbench split` at its gaps, `--train-fraction` for a fit) or fewer samples (decimate it)";
-    check_need(path, work.what(), advice, samples, needed)
+    check_need(path, work.what(), work.advice(), samples, needed)
 }
 
 /// Whether reading the file at `path` fits in the available memory. It is read line by line
@@ -156,16 +212,26 @@ fn check_need(
     }
 }
 
-/// Bytes as a person reads them: "3.2 GB", "850 MB", "12 kB".
+/// Bytes as a person reads them, to three significant digits: "3.21 GB", "850 MB", "12.0 kB".
 pub fn human(bytes: u64) -> String {
     let b = bytes as f64;
-    if b >= 1e9 {
-        format!("{:.1} GB", b / 1e9)
+    let (v, unit) = if b >= 1e9 {
+        (b / 1e9, "GB")
     } else if b >= 1e6 {
-        format!("{:.0} MB", b / 1e6)
+        (b / 1e6, "MB")
+    } else if b >= 1e3 {
+        (b / 1e3, "kB")
     } else {
-        format!("{:.0} kB", (b / 1e3).max(1.0))
-    }
+        return format!("{bytes} bytes");
+    };
+    let decimals = if v >= 100.0 {
+        0
+    } else if v >= 10.0 {
+        1
+    } else {
+        2
+    };
+    format!("{v:.decimals$} {unit}")
 }
 
 #[cfg(test)]
@@ -185,7 +251,10 @@ mod tests {
         assert_eq!(Work::GreyBoxFit.bytes(10_000_000, 1, 3), 10 * one);
         assert!(Work::GreyBoxFit.bytes(1_000_000, 2, 3) > one);
         assert!(Work::Prediction.bytes(1_000_000, 1, 3) < one);
-        assert_eq!(human(3_200_000_000), "3.2 GB");
-        assert_eq!(human(850_000_000), "850 MB");
+        assert_eq!(human(3_214_000_000), "3.21 GB");
+        assert_eq!(human(1_040_000_000), "1.04 GB");
+        assert_eq!(human(960_000_000), "960 MB");
+        assert_eq!(human(12_000), "12.0 kB");
+        assert_eq!(human(0), "0 bytes");
     }
 }

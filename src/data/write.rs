@@ -75,8 +75,8 @@ impl OutputGuard {
         self.stage_with(path, |w| write_rows(w, names, columns))
     }
 
-    /// Stage what `write` writes for `path` (buffered; a temporary beside it, removed when the
-    /// guard is dropped uncommitted, or at once when the write fails).
+    /// Stage what `write` writes for `path` (buffered, into a temporary beside it, which the
+    /// guard removes when it is dropped uncommitted, a failed write included).
     fn stage_with(
         &mut self,
         path: &Path,
@@ -137,9 +137,18 @@ pub fn format_csv(
     Ok(String::from_utf8(s).expect("numbers and the caller's names are UTF-8"))
 }
 
-/// The first non-finite value of `columns` in row order (the row the file would have it on).
+/// The first non-finite value of `columns` in row order (the row the file would have it on);
+/// columns of unequal lengths are refused first.
 fn check_finite(path: &Path, names: &[String], columns: &[Vec<f64>]) -> Result<(), DataError> {
     let n = columns.first().map_or(0, Vec::len);
+    if let Some(j) = (0..columns.len()).find(|&j| columns[j].len() != n) {
+        return Err(DataError::ArrayLength {
+            path: path.to_path_buf(),
+            column: names.get(j).cloned().unwrap_or_default(),
+            found: columns[j].len(),
+            expected: n,
+        });
+    }
     let first = columns
         .iter()
         .enumerate()

@@ -12,6 +12,7 @@ use std::process::{Command, Output};
 pub fn hystbench(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_hystbench"))
         .args(args)
+        .env_remove(hystbench::data::memory::AVAILABLE_VARIABLE)
         .env("FONTCONFIG_FILE", "/nonexistent")
         .env("FONTCONFIG_PATH", "/nonexistent")
         .output()
