@@ -418,22 +418,24 @@ fn a_record_too_large_for_memory_is_refused_before_the_work() {
         "the test needs a fit that outgrows the reading"
     );
     let out = dir.path().join("m.json");
-    let fit = |available: u64| {
-        run_with_memory(
-            available,
-            &[
-                "fit",
-                "--data",
-                s(&data),
-                "--effects",
-                "hysteresis",
-                "--out",
-                s(&out),
-            ],
-        )
+    let fit = |available: u64, extra: &[&str]| {
+        let mut args = vec![
+            "fit",
+            "--data",
+            s(&data),
+            "--effects",
+            "hysteresis",
+            "--out",
+            s(&out),
+        ];
+        args.extend_from_slice(extra);
+        run_with_memory(available, &args)
     };
-    // room to read the file but not to fit it: refused with the size, both figures, advice
-    let o = fit(text + 1);
+    // room to read the file and predict it, not to fit it: refused with the size, both
+    // figures, advice
+    let room = text + Work::Prediction.bytes(n, 1, 3);
+    assert!(room < fit_needs);
+    let o = fit(room, &[]);
     let e = stderr(&o);
     assert!(!o.status.success() && !out.exists(), "{e}");
     for needle in [
@@ -441,9 +443,15 @@ fn a_record_too_large_for_memory_is_refused_before_the_work() {
         "a grey-box fit on 20000 samples needs about",
         "available",
         "hystbench split",
+        "--train-fraction",
     ] {
         assert!(e.contains(needle), "`{needle}` missing from: {e}");
     }
+    // the fit's memory goes with the part it fits: a tenth of the record fits in that room
+    assert!(Work::GreyBoxFit.bytes(n / 10, 1, 3) < room);
+    let o = fit(room, &["--train-fraction", "0.1"]);
+    assert!(o.status.success() && out.exists(), "{}", stderr(&o));
+    std::fs::remove_file(&out).unwrap();
     // not even room to read it: refused before reading, by the file's size
     let o = run_with_memory(
         text - 1,
@@ -463,6 +471,6 @@ fn a_record_too_large_for_memory_is_refused_before_the_work() {
     );
     assert!(!dir.path().join("l.png").exists());
     // with the room the estimate asks for, the fit runs
-    let o = fit(fit_needs + text);
+    let o = fit(fit_needs + text, &[]);
     assert!(o.status.success() && out.exists(), "{}", stderr(&o));
 }

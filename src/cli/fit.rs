@@ -55,10 +55,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let cfg =
         GreyBoxConfig::from_effect_list(&a.effects)?.with_fit_options(a.plays, a.train_fraction)?;
     check_writable(&a.out, a.force)?;
+    // the record itself is predicted; the fit's memory goes with the part it fits
     let io = crate::cli::read_screened(
         &a.data,
         a.screen.outliers,
-        crate::cli::Work::GreyBoxFit,
+        crate::cli::Work::Prediction,
         |r| {
             Ok(IoRecord::from_record(
                 r,
@@ -67,6 +68,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 true,
             )?)
         },
+    )?;
+    hystbench::data::memory::check(
+        &a.data,
+        crate::cli::Work::GreyBoxFit,
+        hystbench::graybox::train_samples(io.len(), cfg.options.train_fraction),
+        io.inputs.len(),
+        1 + io.inputs.len() + io.outputs.len(),
     )?;
     let spinner = crate::cli::progress::Progress::spinner(
         &format!("fitting {} to {} samples", cfg.effect_list(), io.len()),

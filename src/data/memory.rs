@@ -57,6 +57,7 @@ impl Work {
     pub const fn advice(self) -> &'static str {
         match self {
             Work::Simulation => "ask for fewer `samples` in the scenario (or simulate it in parts)",
+            Work::GreyBoxFit => "fit a part of the record (`--train-fraction F` fits the first F of it), use a part (`hystbench split` at its gaps, or cut its lines) or fewer samples (decimate it)",
             _ => "use a part of the record (`hystbench split` at its gaps, or cut its lines) or fewer samples (decimate it)",
         }
     }
