@@ -69,12 +69,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             )?)
         },
     )?;
-    hystbench::data::memory::check(
+    hystbench::data::memory::check_record(
         &a.data,
         crate::cli::Work::GreyBoxFit,
+        &io,
         hystbench::graybox::train_samples(io.len(), cfg.options.train_fraction),
-        io.inputs.len(),
-        1 + io.inputs.len() + io.outputs.len(),
     )?;
     let spinner = crate::cli::progress::Progress::spinner(
         &format!("fitting {} to {} samples", cfg.effect_list(), io.len()),

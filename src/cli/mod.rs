@@ -100,17 +100,6 @@ pub fn warn_outside(record: &std::path::Path, outside: &[hystbench::narx::region
     }
 }
 
-/// Whether `work` on the selected record `io` (read from `path`) fits in the memory this
-/// machine has ([`hystbench::data::memory`]): a clear error before the work, not an abort in it.
-pub fn check_memory(
-    path: &std::path::Path,
-    io: &hystbench::data::IoRecord,
-    work: Work,
-) -> Result<(), hystbench::data::DataError> {
-    let columns = 1 + io.inputs.len() + io.outputs.len();
-    hystbench::data::memory::check(path, work, io.len(), io.inputs.len(), columns)
-}
-
 /// Read a data file through the one reading path, and say on standard error what it accepted
 /// beyond a plain CSV (a `;` separator, decimal commas, comments, units).
 pub fn read_data(
@@ -144,7 +133,8 @@ pub fn read_screened(
     select: impl Fn(&hystbench::data::Record) -> anyhow::Result<hystbench::data::IoRecord>,
 ) -> anyhow::Result<hystbench::data::IoRecord> {
     let (io, s) = hystbench::data::inspect::screened(read_data(path)?, outliers, select)?;
-    check_memory(path, &io, work)?;
+    // a clear error before the work, not an abort in it
+    hystbench::data::memory::check_record(path, work, &io, io.len())?;
     for f in &s.findings {
         eprintln!("warning: {}: {}", path.display(), f.summary());
     }

@@ -51,7 +51,12 @@ pub fn run(args: PredictArgs) -> anyhow::Result<()> {
     let mut rec = rec;
     rec.outputs
         .retain(|s| model.config.outputs.contains(&s.name));
-    crate::cli::check_memory(&args.data, &rec, crate::cli::Work::Prediction)?;
+    hystbench::data::memory::check_record(
+        &args.data,
+        crate::cli::Work::Prediction,
+        &rec,
+        rec.len(),
+    )?;
     crate::cli::warn_outside(&args.data, &model.outside(&rec));
     let preds = model.predict(&rec, args.mode)?;
     for p in &preds {

@@ -93,7 +93,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 Vec::new()
             };
             let io = IoRecord::from_record(&rec, Some(&cols), None, false)?;
-            crate::cli::check_memory(input, &io, crate::cli::Work::Simulation)?;
+            hystbench::data::memory::check_record(
+                input,
+                crate::cli::Work::Simulation,
+                &io,
+                io.len(),
+            )?;
             simulate_recorded(&plant, &io, a.noise, a.seed.unwrap_or(0))?
         }
         (None, None) => unreachable!("clap requires --scenario or --input"),

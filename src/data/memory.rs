@@ -9,8 +9,9 @@
 //! allocated without swapping, under the process's control-group limit when it runs in one).
 //! Reading a file checks its text and parsed columns first ([`check_file`]).
 //!
-//! The estimate is an upper bound on the bench's records (1.1x to 2.6x the peaks measured on
-//! 200,000 to 2,000,000 samples, 2026-11-27), not a prediction to the megabyte: a record
+//! The estimate is an upper bound on the bench's records (1.07x to 2.6x the peaks measured on
+//! 200,000 to 2,000,000 samples, 2026-11-27; `simulate`, which now writes streaming, 2.7x to
+//! 6.9x: its cost is kept for plants with more states than the bench's), not a prediction to the megabyte: a record
 //! refused by a few percent can be cut a little.
 //! `HYSTBENCH_MEMORY_AVAILABLE` (bytes) replaces the machine's figure: to check what a
 //! smaller machine would say, or to go ahead where the estimate is too cautious.
@@ -179,6 +180,19 @@ pub fn check(
 ) -> Result<(), DataError> {
     let needed = work.bytes(samples, inputs, columns);
     check_need(path, work.what(), work.advice(), samples, needed)
+}
+
+/// [`check`] for the selected record `io` read from `path`, of which `samples` are worked on
+/// (`io.len()`, or a fit's training part): its inputs are the paths, its columns the time,
+/// the inputs and the outputs.
+pub fn check_record(
+    path: &Path,
+    work: Work,
+    io: &super::IoRecord,
+    samples: usize,
+) -> Result<(), DataError> {
+    let columns = 1 + io.inputs.len() + io.outputs.len();
+    check(path, work, samples, io.inputs.len(), columns)
 }
 
 /// Whether reading the file at `path` fits in the available memory. It is read line by line
