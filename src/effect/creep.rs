@@ -16,7 +16,7 @@
 use super::basis::{BasisBank, BasisContext, EvidenceContext};
 use super::draw::{Dice, DrawContext};
 use super::feature::{FeatureKind, FeatureSpec};
-use super::fitting::{FilterFit, OutputSetup, Prepared, RecordError, RecordView};
+use super::fitting::{FilterFit, FilterState, OutputSetup, Prepared, RecordError, RecordView};
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
 use super::{finite, positive, Effect, EffectError, EffectName, Operator, Slot};
 use serde::{Deserialize, Serialize};
@@ -355,20 +355,24 @@ impl FilterFit for CreepFilter {
         }
         let a: Vec<f64> = self.taus.iter().map(|t| (-self.ts / t).exp()).collect();
         let g = th.to_vec();
-        Prepared::Apply(Box::new(move |cols: &mut [&mut [f64]]| {
-            for out in cols.iter_mut() {
-                let mut z = vec![0.0; a.len()];
-                for v in out.iter_mut() {
-                    let w = *v;
-                    let mut o = w;
-                    for ((zi, &ai), &gi) in z.iter_mut().zip(&a).zip(&g) {
-                        o += gi * *zi;
-                        *zi = ai * *zi + (1.0 - ai) * w;
+        Prepared::Apply(Box::new(
+            move |cols: &mut [&mut [f64]], states: &mut [FilterState]| {
+                for (out, z) in cols.iter_mut().zip(states.iter_mut()) {
+                    if z.is_empty() {
+                        z.resize(a.len(), 0.0);
                     }
-                    *v = o;
+                    for v in out.iter_mut() {
+                        let w = *v;
+                        let mut o = w;
+                        for ((zi, &ai), &gi) in z.iter_mut().zip(&a).zip(&g) {
+                            o += gi * *zi;
+                            *zi = ai * *zi + (1.0 - ai) * w;
+                        }
+                        *v = o;
+                    }
                 }
-            }
-        }))
+            },
+        ))
     }
     fn derivative(&self, _th: &[f64], x: &[f64], q: usize) -> Vec<f64> {
         let one = Creep {

@@ -13,7 +13,9 @@
 use super::basis::{BasisBank, BasisContext, EvidenceContext};
 use super::draw::{Dice, DrawContext};
 use super::feature::{FeatureKind, FeatureSpec};
-use super::fitting::{log_bounded, log_bounded_inv, FilterFit, OutputSetup, Prepared, FD_STEP};
+use super::fitting::{
+    log_bounded, log_bounded_inv, FilterFit, FilterState, OutputSetup, Prepared, FD_STEP,
+};
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
 use super::{non_negative, positive, Effect, EffectError, EffectName, Operator, Slot};
 use nalgebra::{Matrix2, Matrix3, Vector2};
@@ -287,7 +289,7 @@ fn filtered(d: &Dynamics, ts: f64, x: &[f64]) -> Vec<f64> {
     match prepared(d, ts) {
         Prepared::Apply(f) => {
             let mut out = x.to_vec();
-            f(&mut [&mut out]);
+            f(&mut [&mut out], &mut [Vec::new()]);
             out
         }
         _ => vec![f64::NAN; x.len()],
@@ -295,9 +297,9 @@ fn filtered(d: &Dynamics, ts: f64, x: &[f64]) -> Vec<f64> {
 }
 
 /// The discretised second-order filter (state matrix `p` row by row, input vector `gm`, one
-/// sample of delay) on one signal in place.
-fn resonate(p: &[f64; 4], gm: &[f64; 2], out: &mut [f64]) {
-    let (mut x0, mut x1) = (0.0, 0.0);
+/// sample of delay) on one signal in place, from state `x` (updated).
+fn resonate(p: &[f64; 4], gm: &[f64; 2], out: &mut [f64], x: &mut [f64; 2]) {
+    let [mut x0, mut x1] = *x;
     for v in out.iter_mut() {
         let w = *v;
         *v = x0;
@@ -306,6 +308,15 @@ fn resonate(p: &[f64; 4], gm: &[f64; 2], out: &mut [f64]) {
         x0 = n0;
         x1 = n1;
     }
+    *x = [x0, x1];
+}
+
+/// A signal's resonator state (at rest when empty).
+fn state_of(s: &FilterState) -> [f64; 2] {
+    match s.as_slice() {
+        [a, b] => [*a, *b],
+        _ => [0.0; 2],
+    }
 }
 
 fn prepared(d: &Dynamics, ts: f64) -> Prepared {
@@ -313,35 +324,48 @@ fn prepared(d: &Dynamics, ts: f64) -> Prepared {
         Ok((phi, gam)) => {
             let p = [phi[(0, 0)], phi[(0, 1)], phi[(1, 0)], phi[(1, 1)]];
             let gm = [gam[0], gam[1]];
-            Prepared::Apply(Box::new(move |cols: &mut [&mut [f64]]| {
-                // four columns side by side: the recursion's latency is shared (each column's
-                // arithmetic is the same as alone)
-                let mut rest = &mut cols[..];
-                while let [a, b, c, d, tail @ ..] = rest {
-                    let n = a.len();
-                    if b.len() == n && c.len() == n && d.len() == n {
-                        let (mut x0, mut x1) = ([0.0; 4], [0.0; 4]);
-                        for k in 0..n {
-                            let w = [a[k], b[k], c[k], d[k]];
-                            (a[k], b[k], c[k], d[k]) = (x0[0], x0[1], x0[2], x0[3]);
-                            for l in 0..4 {
-                                let n0 = p[0] * x0[l] + p[1] * x1[l] + gm[0] * w[l];
-                                let n1 = p[2] * x0[l] + p[3] * x1[l] + gm[1] * w[l];
-                                x0[l] = n0;
-                                x1[l] = n1;
+            let alone = move |out: &mut [f64], s: &mut FilterState| {
+                let mut x = state_of(s);
+                resonate(&p, &gm, out, &mut x);
+                *s = x.to_vec();
+            };
+            Prepared::Apply(Box::new(
+                move |cols: &mut [&mut [f64]], states: &mut [FilterState]| {
+                    // four columns side by side: the recursion's latency is shared (each column's
+                    // arithmetic is the same as alone)
+                    for (group, st) in cols.chunks_mut(4).zip(states.chunks_mut(4)) {
+                        match (group, st) {
+                            ([a, b, c, d], [sa, sb, sc, sd])
+                                if b.len() == a.len()
+                                    && c.len() == a.len()
+                                    && d.len() == a.len() =>
+                            {
+                                let s4 = [state_of(sa), state_of(sb), state_of(sc), state_of(sd)];
+                                let mut x0 = s4.map(|s| s[0]);
+                                let mut x1 = s4.map(|s| s[1]);
+                                for k in 0..a.len() {
+                                    let w = [a[k], b[k], c[k], d[k]];
+                                    (a[k], b[k], c[k], d[k]) = (x0[0], x0[1], x0[2], x0[3]);
+                                    for l in 0..4 {
+                                        let n0 = p[0] * x0[l] + p[1] * x1[l] + gm[0] * w[l];
+                                        let n1 = p[2] * x0[l] + p[3] * x1[l] + gm[1] * w[l];
+                                        x0[l] = n0;
+                                        x1[l] = n1;
+                                    }
+                                }
+                                for (l, s) in [sa, sb, sc, sd].into_iter().enumerate() {
+                                    *s = vec![x0[l], x1[l]];
+                                }
+                            }
+                            (group, st) => {
+                                for (out, s) in group.iter_mut().zip(st.iter_mut()) {
+                                    alone(out, s);
+                                }
                             }
                         }
-                    } else {
-                        for out in [a, b, c, d] {
-                            resonate(&p, &gm, out);
-                        }
                     }
-                    rest = tail;
-                }
-                for out in rest.iter_mut() {
-                    resonate(&p, &gm, out);
-                }
-            }))
+                },
+            ))
         }
         Err(_) => Prepared::Invalid,
     }
@@ -574,14 +598,15 @@ mod tests {
             cols.iter()
                 .map(|c| {
                     let mut c = c.clone();
-                    f(&mut [c.as_mut_slice()]);
+                    f(&mut [c.as_mut_slice()], &mut [Vec::new()]);
                     c
                 })
                 .collect()
         };
         let together = |mut cols: Vec<Vec<f64>>| -> Vec<Vec<f64>> {
             let mut slices: Vec<&mut [f64]> = cols.iter_mut().map(Vec::as_mut_slice).collect();
-            f(&mut slices);
+            let mut states = vec![Vec::new(); slices.len()];
+            f(&mut slices, &mut states);
             cols
         };
         let alone = each_alone(&cols);
@@ -589,6 +614,15 @@ mod tests {
         // and five distinct columns of one length: a group of four takes the four-wide path
         let same: Vec<Vec<f64>> = [0, 1, 3, 4, 5].map(|j| alone[j].clone()).to_vec();
         assert_eq!(together(same.clone()), each_alone(&same));
+        // in blocks, each resuming from the state the last one left: the same bits
+        let mut blocks = same.clone();
+        let mut states = vec![Vec::new(); blocks.len()];
+        for rows in [0..1, 1..300, 300..301, 301..1000] {
+            let mut slices: Vec<&mut [f64]> =
+                blocks.iter_mut().map(|c| &mut c[rows.clone()]).collect();
+            f(&mut slices, &mut states);
+        }
+        assert_eq!(blocks, each_alone(&same));
     }
 
     #[test]

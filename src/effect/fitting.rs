@@ -13,6 +13,7 @@
 
 use super::spec::EffectSpec;
 use std::borrow::Cow;
+use std::ops::Range;
 
 /// Finite-difference step in the (transformed) parameter space.
 pub const FD_STEP: f64 = 1e-6;
@@ -148,21 +149,72 @@ pub trait TermFit: Send + Sync {
     }
     /// Number of columns (fixed by the setup).
     fn n_columns(&self) -> usize;
-    /// The columns for parameters `th` (this term's slice).
+    /// The columns over the whole record for parameters `th` (this term's slice).
     fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>>;
-    /// d/d th_q of sum_k coef_k column_k (before the filters); `cols` are the columns at `th`.
+    /// The columns on the rows `rows` of the record, written into `out` (one buffer per
+    /// column, overwritten), in a pass that runs the record's rows in order from the first
+    /// (`state` starts empty and carries what the term needs from one block to the next);
+    /// returns which columns must have c >= 0. Only the columns where `wanted` is set need be
+    /// written (the pass asks for the same ones at every block). The default computes [`TermFit::columns`] at
+    /// the first block and keeps them for the pass (a term of a column or two); a term of many
+    /// columns whose recursion can resume (the plays) carries its state instead, so that a
+    /// long record's columns are never held whole.
+    fn columns_block(
+        &self,
+        th: &[f64],
+        rows: Range<usize>,
+        state: &mut TermState,
+        out: &mut [Vec<f64>],
+        wanted: &[bool],
+    ) -> Vec<bool> {
+        let whole = state.whole.get_or_insert_with(|| {
+            self.columns(th)
+                .into_iter()
+                .map(|(c, nonneg)| (c.into_owned(), nonneg))
+                .collect()
+        });
+        for ((o, (c, _)), _) in out
+            .iter_mut()
+            .zip(whole.iter())
+            .zip(wanted)
+            .filter(|(_, w)| **w)
+        {
+            o.clear();
+            o.extend_from_slice(&c[rows.clone()]);
+        }
+        whole.iter().map(|(_, nonneg)| *nonneg).collect()
+    }
+    /// d/d th_q of sum_k coef_k column_k (before the filters) at `th`, over the whole record.
     /// A term with parameters must give it (the default, for terms without parameters, is
     /// empty); `graybox`'s derivative test checks the built-in terms against central differences.
-    fn derivative(&self, _th: &[f64], _q: usize, _cols: &[&[f64]], _coef: &[f64]) -> Vec<f64> {
+    fn derivative(&self, _th: &[f64], _q: usize, _coef: &[f64]) -> Vec<f64> {
         Vec::new()
     }
     /// The fitted term: `gain` is the path's gain coefficient, `coef` this term's coefficients.
     fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec;
 }
 
+/// What a term carries from one block of rows to the next in a pass over the record
+/// ([`TermFit::columns_block`]); a pass starts from `TermState::default()`.
+#[derive(Debug, Default)]
+pub struct TermState {
+    /// The columns over the whole record (the default [`TermFit::columns_block`]).
+    pub whole: Option<Vec<(Vec<f64>, bool)>>,
+    /// A recursion's state at the last row seen (the plays' outputs).
+    pub carry: Vec<f64>,
+    /// Buffers kept from one block to the next (columns the term computes on its way).
+    pub scratch: Vec<Vec<f64>>,
+}
+
+/// A filter's state for one signal at the last sample filtered, carried to the next block of
+/// the same signal; empty before the first block (the filter at rest).
+pub type FilterState = Vec<f64>;
+
 /// A filter that works in place on signals of one length, each filtered alone (a filter may
-/// run them side by side for speed; each signal's arithmetic is the same as alone).
-pub type InPlace = Box<dyn Fn(&mut [&mut [f64]]) + Send + Sync>;
+/// run them side by side for speed; each signal's arithmetic is the same as alone), each
+/// resuming from its state (`states[k]` for signal `k`, updated): a signal filtered in blocks
+/// gets the same values as filtered whole.
+pub type InPlace = Box<dyn Fn(&mut [&mut [f64]], &mut [FilterState]) + Send + Sync>;
 
 /// A filter applied to a signal in place, or a mark that it cannot be applied.
 pub enum Prepared {

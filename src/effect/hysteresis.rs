@@ -10,8 +10,8 @@ use super::bouc_wen::{BoucWen, BoucWenOp, BoucWenSpec};
 use super::draw::{Dice, DrawContext, PathRole};
 use super::feature::{FeatureKind, FeatureSpec};
 use super::fitting::{
-    Column, PathSetup, RecordError, RecordView, TermFit, TermSpec, Variant, FD_STEP, LIMIT,
-    SECOND_STAGE_PARAM,
+    Column, PathSetup, RecordError, RecordView, TermFit, TermSpec, TermState, Variant, FD_STEP,
+    LIMIT, SECOND_STAGE_PARAM,
 };
 use super::play::{play_bank, play_operator};
 use super::prandtl_ishlinskii::{
@@ -22,6 +22,7 @@ use super::{finite, Effect, EffectError, EffectName, Operator, Slot};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::borrow::Cow;
+use std::ops::Range;
 
 /// A linear path: y = gain * u.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -167,21 +168,6 @@ fn max_abs(u: &[f64]) -> f64 {
     crate::metrics::max_abs(u).max(1e-300)
 }
 
-fn plays_of(u: &[f64], thresholds: &[f64]) -> Vec<Vec<f64>> {
-    thresholds
-        .par_iter()
-        .map(|&r| {
-            let mut z = 0.0;
-            u.iter()
-                .map(|&v| {
-                    z = play_operator(v, r, z);
-                    z
-                })
-                .collect()
-        })
-        .collect()
-}
-
 /// -htilde for A = 1 (h is linear in A for fixed B and Gamma: the exact update scales with A).
 fn bouc_wen_column(u: &[f64], b: f64, gamma: f64) -> Vec<f64> {
     let spec = BoucWenSpec::unit(b, gamma);
@@ -319,14 +305,22 @@ fn bouc_wen_grid() -> Vec<Vec<f64>> {
 /// Prandtl-Ishlinskii plays (weights >= 0, sharing the sign of the path's gain), for the default
 /// operator the ramps of a static input map (weights of either sign) and, on a positive path,
 /// one Bouc-Wen column (A >= 0). Column order: plays, ramps, Bouc-Wen.
+///
+/// The plays and ramps are computed where they are asked for, not kept: a long record's
+/// columns come a block of rows at a time ([`TermFit::columns_block`]), the plays resuming
+/// from their states.
 struct PiTerm<'a> {
     u: &'a [f64],
     thresholds: Vec<f64>,
     sign: f64,
-    plays: Vec<Vec<f64>>,
-    /// Knots z_j of the static input map and its ramps S_{z_j}(u).
+    /// Knots z_j of the static input map (its ramps are S_{z_j}(u)).
     knots: Vec<f64>,
-    ramps: Vec<Vec<f64>>,
+    /// The plays and ramps over the whole record, kept when they take at most
+    /// [`CACHED_COLUMNS_BYTES`] (they do not depend on the parameters).
+    cached: Option<Vec<Vec<f64>>>,
+    /// The Bouc-Wen column at the last parameters it was computed for (the Jacobian's
+    /// derivatives follow an evaluation at the same point).
+    bw_memo: BwMemo,
     /// The Bouc-Wen column's input range, when there is one.
     bw: Option<f64>,
 }
@@ -407,24 +401,6 @@ fn bw_start_grid(bw: Option<f64>) -> Vec<Vec<f64>> {
     }
 }
 
-fn bw_column(u: &[f64], bw: Option<f64>, th: &[f64]) -> Option<Column<'static>> {
-    let (b, g) = bouc_wen_params(th, bw?);
-    Some((Cow::Owned(bouc_wen_column(u, b, g)), true))
-}
-
-/// The derivative of the output in Bouc-Wen parameter `q` (the column is the last one).
-fn bw_derivative(
-    u: &[f64],
-    bw: Option<f64>,
-    th: &[f64],
-    q: usize,
-    cols: &[&[f64]],
-    coef: &[f64],
-) -> Vec<f64> {
-    let last = cols.len() - 1;
-    bouc_wen_derivative(u, th, q, bw.unwrap_or(1.0), cols[last], coef[last])
-}
-
 fn bw_extra_path(bw: Option<f64>, th: &[f64], a: f64) -> Option<Box<dyn EffectSpec>> {
     let range = bw?;
     (a > 0.0).then(|| {
@@ -433,9 +409,159 @@ fn bw_extra_path(bw: Option<f64>, th: &[f64], a: f64) -> Option<Box<dyn EffectSp
     })
 }
 
+/// A term keeps its parameter-free columns (the plays and ramps) over the whole record up to
+/// this size; beyond, it computes them a block at a time where they are asked for.
+const CACHED_COLUMNS_BYTES: usize = 128 << 20;
+
+/// Plays computed side by side in [`PiTerm::columns_block`].
+const PLAYS_SIDE_BY_SIDE: usize = 8;
+
+/// The last Bouc-Wen column computed, with its parameters.
+type BwMemo = std::sync::Mutex<Option<(Vec<f64>, std::sync::Arc<Vec<f64>>)>>;
+
+/// The Bouc-Wen column at `th` (range `range`), from `memo` when it holds the column of `th`.
+fn bw_memoized(u: &[f64], range: f64, th: &[f64], memo: &BwMemo) -> std::sync::Arc<Vec<f64>> {
+    let mut m = memo.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((at, col)) = m.as_ref() {
+        if at.as_slice() == th {
+            return col.clone();
+        }
+    }
+    let (b, g) = bouc_wen_params(th, range);
+    let col = std::sync::Arc::new(bouc_wen_column(u, b, g));
+    *m = Some((th.to_vec(), col.clone()));
+    col
+}
+
+impl<'a> PiTerm<'a> {
+    fn new(
+        u: &'a [f64],
+        thresholds: Vec<f64>,
+        sign: f64,
+        knots: Vec<f64>,
+        bw: Option<f64>,
+    ) -> Self {
+        let mut t = PiTerm {
+            u,
+            thresholds,
+            sign,
+            knots,
+            cached: None,
+            bw_memo: BwMemo::default(),
+            bw,
+        };
+        let bytes = (t.thresholds.len() + t.knots.len()) * u.len() * 8;
+        if bytes <= CACHED_COLUMNS_BYTES {
+            let mut z = vec![0.0; t.thresholds.len()];
+            let mut cols = vec![Vec::new(); t.thresholds.len() + t.knots.len()];
+            let all = vec![true; cols.len()];
+            t.columns_on(0..u.len(), &mut z, None, &mut cols, &all);
+            t.cached = Some(cols);
+        }
+        t
+    }
+
+    /// The Bouc-Wen column at `th`, when the term has one.
+    fn bw_at(&self, th: &[f64]) -> Option<std::sync::Arc<Vec<f64>>> {
+        self.bw
+            .map(|range| bw_memoized(self.u, range, th, &self.bw_memo))
+    }
+
+    /// The plays (from states `z`, updated), the ramps and the Bouc-Wen column (from
+    /// `bw_whole`, the column over the whole record) on the input samples `u` at `rows`,
+    /// written into `out` (one buffer per column); only the columns where `wanted` is set (a
+    /// play left out keeps its state: it is left out of the whole pass).
+    fn columns_on(
+        &self,
+        rows: Range<usize>,
+        z: &mut [f64],
+        bw_whole: Option<&[f64]>,
+        out: &mut [Vec<f64>],
+        wanted: &[bool],
+    ) {
+        let u = &self.u[rows.clone()];
+        let sign = self.sign;
+        let np = self.thresholds.len();
+        let (plays, rest) = out.split_at_mut(np);
+        let mut jobs: Vec<(f64, &mut f64, &mut Vec<f64>)> = self
+            .thresholds
+            .iter()
+            .zip(z.iter_mut())
+            .zip(plays.iter_mut())
+            .zip(wanted)
+            .filter(|(_, w)| **w)
+            .map(|(((&r, z), o), _)| (r, z, o))
+            .collect();
+        // eight plays side by side: their recursions interleave (each play's arithmetic is
+        // that of `play_operator` alone)
+        jobs.par_chunks_mut(PLAYS_SIDE_BY_SIDE).for_each(|group| {
+            for (_, _, o) in group.iter_mut() {
+                o.clear();
+                o.reserve(u.len());
+            }
+            if let [a0, a1, a2, a3, a4, a5, a6, a7] = group {
+                let r = [a0.0, a1.0, a2.0, a3.0, a4.0, a5.0, a6.0, a7.0];
+                let mut zz = [*a0.1, *a1.1, *a2.1, *a3.1, *a4.1, *a5.1, *a6.1, *a7.1];
+                for &v in u {
+                    for l in 0..PLAYS_SIDE_BY_SIDE {
+                        zz[l] = play_operator(v, r[l], zz[l]);
+                    }
+                    a0.2.push(zz[0]);
+                    a1.2.push(zz[1]);
+                    a2.2.push(zz[2]);
+                    a3.2.push(zz[3]);
+                    a4.2.push(zz[4]);
+                    a5.2.push(zz[5]);
+                    a6.2.push(zz[6]);
+                    a7.2.push(zz[7]);
+                }
+                for (a, z) in group.iter_mut().zip(zz) {
+                    *a.1 = z;
+                }
+            } else {
+                for (r, z, o) in group.iter_mut() {
+                    o.extend(u.iter().map(|&v| {
+                        **z = play_operator(v, *r, **z);
+                        **z
+                    }));
+                }
+            }
+            if sign <= 0.0 {
+                for (_, _, o) in group.iter_mut() {
+                    o.iter_mut().for_each(|v| *v = -*v);
+                }
+            }
+        });
+        for ((o, &k), _) in rest
+            .iter_mut()
+            .zip(&self.knots)
+            .zip(&wanted[np..])
+            .filter(|(_, w)| **w)
+        {
+            o.clear();
+            o.extend(u.iter().map(|&x| dead_zone(x, k)));
+        }
+        let at = self.knots.len();
+        if let (Some(b), Some(o), Some(true)) = (bw_whole, rest.get_mut(at), wanted.get(np + at)) {
+            o.clear();
+            o.extend_from_slice(&b[rows]);
+        }
+    }
+
+    /// Which columns must have c >= 0: the plays and the Bouc-Wen column.
+    fn nonnegative(&self) -> Vec<bool> {
+        let mut v = vec![true; self.thresholds.len()];
+        v.extend(std::iter::repeat_n(false, self.knots.len()));
+        if self.bw.is_some() {
+            v.push(true);
+        }
+        v
+    }
+}
+
 impl TermFit for PiTerm<'_> {
     fn n_columns(&self) -> usize {
-        self.plays.len() + self.ramps.len() + usize::from(self.bw.is_some())
+        self.thresholds.len() + self.knots.len() + usize::from(self.bw.is_some())
     }
     fn n_params(&self) -> usize {
         bw_n_params(self.bw)
@@ -447,22 +573,56 @@ impl TermFit for PiTerm<'_> {
         bw_start_grid(self.bw)
     }
     fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>> {
-        let mut cols: Vec<Column<'s>> = Vec::with_capacity(self.n_columns());
-        for z in &self.plays {
-            if self.sign > 0.0 {
-                cols.push((Cow::Borrowed(z.as_slice()), true));
-            } else {
-                cols.push((Cow::Owned(z.iter().map(|v| -v).collect()), true));
-            }
-        }
-        for r in &self.ramps {
-            cols.push((Cow::Borrowed(r.as_slice()), false));
-        }
-        cols.extend(bw_column(self.u, self.bw, th));
-        cols
+        let bw = self.bw_at(th);
+        let mut z = vec![0.0; self.thresholds.len()];
+        let mut out = vec![Vec::new(); self.n_columns()];
+        let all = vec![true; out.len()];
+        let bw = bw.as_ref().map(|c| c.as_slice());
+        self.columns_on(0..self.u.len(), &mut z, bw, &mut out, &all);
+        out.into_iter()
+            .zip(self.nonnegative())
+            .map(|(c, nonneg)| (Cow::Owned(c), nonneg))
+            .collect()
     }
-    fn derivative(&self, th: &[f64], q: usize, cols: &[&[f64]], coef: &[f64]) -> Vec<f64> {
-        bw_derivative(self.u, self.bw, th, q, cols, coef)
+    fn columns_block(
+        &self,
+        th: &[f64],
+        rows: Range<usize>,
+        state: &mut TermState,
+        out: &mut [Vec<f64>],
+        wanted: &[bool],
+    ) -> Vec<bool> {
+        if rows.start == 0 {
+            state.carry = vec![0.0; self.thresholds.len()];
+        }
+        let at = self.thresholds.len() + self.knots.len();
+        let bw = if wanted.get(at) == Some(&true) {
+            self.bw_at(th)
+        } else {
+            None
+        };
+        let bw = bw.as_ref().map(|c| c.as_slice());
+        match &self.cached {
+            Some(cached) => {
+                for ((o, c), _) in out.iter_mut().zip(cached).zip(wanted).filter(|(_, w)| **w) {
+                    o.clear();
+                    o.extend_from_slice(&c[rows.clone()]);
+                }
+                if let (Some(b), Some(o)) = (bw, out.get_mut(at)) {
+                    o.clear();
+                    o.extend_from_slice(&b[rows]);
+                }
+            }
+            None => self.columns_on(rows, &mut state.carry, bw, out, wanted),
+        }
+        self.nonnegative()
+    }
+    fn derivative(&self, th: &[f64], q: usize, coef: &[f64]) -> Vec<f64> {
+        let base = self
+            .bw_at(th)
+            .expect("a term with parameters has its Bouc-Wen column");
+        let range = self.bw.unwrap_or(1.0);
+        bouc_wen_derivative(self.u, th, q, range, &base, coef[coef.len() - 1])
     }
     fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec {
         let n = self.thresholds.len();
@@ -540,8 +700,11 @@ struct OutputMapTerm<'a> {
     /// Its output over `u` (theta = 0).
     z0: std::sync::Arc<Vec<f64>>,
     /// The operator's own columns x_q (after u): the plays at its thresholds, then the ramps
-    /// of its input map.
-    x: Vec<Vec<f64>>,
+    /// of its input map (a positive Prandtl-Ishlinskii term's columns: kept whole on a short
+    /// record, computed where asked on a long one).
+    x: PiTerm<'a>,
+    /// The Bouc-Wen column at the last parameters asked.
+    bw_memo: BwMemo,
     /// The nonzero knots d_j, increasing.
     knots: Vec<f64>,
     bw: Option<f64>,
@@ -556,6 +719,9 @@ struct SlopeAt {
     slopes: Vec<f64>,
     at: std::sync::Arc<Vec<f64>>,
 }
+
+/// Rows of a block of the operator's output computed at once ([`OutputMapTerm::z`]).
+const Z_ROWS: usize = 1 << 16;
 
 /// The slopes of S below the smallest slope kept (relative to its steepest slope): the
 /// dead-zone map must increase strictly.
@@ -590,23 +756,88 @@ impl<'a> OutputMapTerm<'a> {
             }
         }
         knots.sort_by(f64::total_cmp);
-        let mut x = plays_of(setup.u, &pi.thresholds);
-        if let Some(map) = &pi.input_map {
-            x.extend(
-                map.thresholds
-                    .iter()
-                    .map(|&d| setup.u.iter().map(|&v| dead_zone(v, d)).collect()),
-            );
-        }
+        let ramps = pi
+            .input_map
+            .as_ref()
+            .map_or_else(Vec::new, |m| m.thresholds.clone());
+        let x = PiTerm::new(setup.u, pi.thresholds.clone(), 1.0, ramps, None);
         Some(OutputMapTerm {
             u: setup.u,
             pi: pi.clone(),
             z0: prev.output.clone(),
             x,
+            bw_memo: BwMemo::default(),
             knots,
             bw: (setup.variant == 0 && setup.sign > 0.0).then_some(range),
             slope: std::sync::Mutex::new(None),
         })
+    }
+
+    /// The number of the operator's columns x_q.
+    fn x_len(&self) -> usize {
+        self.x.n_columns()
+    }
+
+    /// The operator's column x_q over the whole record.
+    fn x_whole(&self, q: usize) -> Cow<'_, [f64]> {
+        if let Some(c) = &self.x.cached {
+            return Cow::Borrowed(c[q].as_slice());
+        }
+        let mut out = vec![Vec::new(); self.x_len()];
+        let mut wanted = vec![false; out.len()];
+        wanted[q] = true;
+        let mut z = vec![0.0; self.x.thresholds.len()];
+        self.x
+            .columns_on(0..self.u.len(), &mut z, None, &mut out, &wanted);
+        Cow::Owned(std::mem::take(&mut out[q]))
+    }
+
+    /// The operator's output at weights `w` on the rows `rows` (from the plays' states `z`,
+    /// updated; `x` the buffers of its columns), added in the order of [`OutputMapTerm::z`].
+    fn z_block(
+        &self,
+        w: &[f64],
+        rows: Range<usize>,
+        z: &mut [f64],
+        x: &mut [Vec<f64>],
+    ) -> Vec<f64> {
+        let mut out = self.z0[rows.clone()].to_vec();
+        if w.iter().all(|&t| t == 0.0) {
+            return out;
+        }
+        for (v, &x) in out.iter_mut().zip(&self.u[rows.clone()]) {
+            *v += w[0] * x;
+        }
+        let wanted: Vec<bool> = w[1..].iter().map(|&t| t != 0.0).collect();
+        let cols = match &self.x.cached {
+            Some(c) => c.iter().map(|c| &c[rows.clone()]).collect::<Vec<_>>(),
+            None => {
+                self.x.columns_on(rows, z, None, x, &wanted);
+                x.iter().map(Vec::as_slice).collect()
+            }
+        };
+        for ((col, &t), _) in cols.iter().zip(&w[1..]).zip(&wanted).filter(|(_, w)| **w) {
+            for (v, &x) in out.iter_mut().zip(col.iter()) {
+                *v += t * x;
+            }
+        }
+        out
+    }
+
+    /// The map's columns S_j(z) - S_j(0) of the operator's output `z` where `wanted`, into
+    /// `out`.
+    fn map_columns(&self, z: &[f64], out: &mut [Vec<f64>], wanted: &[bool]) {
+        for (((a, b), o), _) in self
+            .bounds()
+            .into_iter()
+            .zip(out.iter_mut())
+            .zip(wanted)
+            .filter(|(_, w)| **w)
+        {
+            let at0 = 0.0f64.clamp(a, b);
+            o.clear();
+            o.extend(z.iter().map(|&v| v.clamp(a, b) - at0));
+        }
     }
 
     /// The intervals of S: (-inf, d_1], [d_1, d_2], ..., [d_k, inf).
@@ -617,21 +848,21 @@ impl<'a> OutputMapTerm<'a> {
         b.windows(2).map(|w| (w[0], w[1])).collect()
     }
 
-    /// The operator's output at weights `w` (increments over the first stage's).
+    /// The operator's output at weights `w` (increments over the first stage's), computed a
+    /// few chunks of rows at a time (the operator's columns are not held whole).
     fn z(&self, w: &[f64]) -> Cow<'_, [f64]> {
         if w.iter().all(|&t| t == 0.0) {
             return Cow::Borrowed(self.z0.as_slice());
         }
-        let mut z = self.z0.to_vec();
-        for (v, &x) in z.iter_mut().zip(self.u) {
-            *v += w[0] * x;
-        }
-        for (col, &t) in self.x.iter().zip(&w[1..]) {
-            if t != 0.0 {
-                for (v, &x) in z.iter_mut().zip(col) {
-                    *v += t * x;
-                }
-            }
+        let n = self.u.len();
+        let mut z = Vec::with_capacity(n);
+        let mut states = vec![0.0; self.x.thresholds.len()];
+        let mut x = vec![Vec::new(); self.x_len()];
+        let mut at = 0;
+        while at < n {
+            let end = (at + Z_ROWS).min(n);
+            z.extend(self.z_block(w, at..end, &mut states, &mut x));
+            at = end;
         }
         Cow::Owned(z)
     }
@@ -712,15 +943,15 @@ impl TermFit for OutputMapTerm<'_> {
         self.knots.len() + 1 + usize::from(self.bw.is_some())
     }
     fn n_params(&self) -> usize {
-        bw_n_params(self.bw) + 1 + self.x.len()
+        bw_n_params(self.bw) + 1 + self.x_len()
     }
     fn param_names(&self) -> Vec<&'static str> {
         let mut names = bw_param_names(self.bw);
-        names.extend(std::iter::repeat_n(SECOND_STAGE_PARAM, 1 + self.x.len()));
+        names.extend(std::iter::repeat_n(SECOND_STAGE_PARAM, 1 + self.x_len()));
         names
     }
     fn start_grid(&self) -> Vec<Vec<f64>> {
-        let extra = 1 + self.x.len();
+        let extra = 1 + self.x_len();
         bw_start_grid(self.bw)
             .into_iter()
             .map(|mut p| {
@@ -731,31 +962,60 @@ impl TermFit for OutputMapTerm<'_> {
     }
     fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>> {
         let z = self.z(self.weights_of(th));
-        let mut cols: Vec<Column<'s>> = self
-            .bounds()
-            .into_iter()
-            .map(|(a, b)| {
-                let at0 = 0.0f64.clamp(a, b);
-                let c: Vec<f64> = z.iter().map(|&v| v.clamp(a, b) - at0).collect();
-                (Cow::Owned(c), true)
-            })
-            .collect();
-        cols.extend(bw_column(self.u, self.bw, th));
+        let m = self.knots.len() + 1;
+        let mut out = vec![Vec::new(); m];
+        self.map_columns(&z, &mut out, &vec![true; m]);
+        let mut cols: Vec<Column<'s>> = out.into_iter().map(|c| (Cow::Owned(c), true)).collect();
+        if let Some(range) = self.bw {
+            let c = bw_memoized(self.u, range, &th[..2], &self.bw_memo);
+            cols.push((Cow::Owned(c.to_vec()), true));
+        }
         cols
     }
-    fn derivative(&self, th: &[f64], q: usize, cols: &[&[f64]], coef: &[f64]) -> Vec<f64> {
+    fn columns_block(
+        &self,
+        th: &[f64],
+        rows: Range<usize>,
+        state: &mut TermState,
+        out: &mut [Vec<f64>],
+        wanted: &[bool],
+    ) -> Vec<bool> {
+        if rows.start == 0 {
+            state.carry = vec![0.0; self.x.thresholds.len()];
+            state.scratch = vec![Vec::new(); self.x_len()];
+        }
+        let m = self.knots.len() + 1;
+        if wanted[..m].iter().any(|w| *w) {
+            let w = self.weights_of(th);
+            let z = self.z_block(w, rows.clone(), &mut state.carry, &mut state.scratch);
+            self.map_columns(&z, &mut out[..m], &wanted[..m]);
+        }
+        if let (Some(range), Some(o), Some(true)) = (self.bw, out.get_mut(m), wanted.get(m)) {
+            let c = bw_memoized(self.u, range, &th[..2], &self.bw_memo);
+            o.clear();
+            o.extend_from_slice(&c[rows]);
+        }
+        let mut flags = vec![true; m];
+        if self.bw.is_some() {
+            flags.push(true);
+        }
+        flags
+    }
+    fn derivative(&self, th: &[f64], q: usize, coef: &[f64]) -> Vec<f64> {
         let nbw = bw_n_params(self.bw);
         if q < nbw {
-            return bw_derivative(self.u, self.bw, th, q, cols, coef);
+            let range = self.bw.unwrap_or(1.0);
+            let base = bw_memoized(self.u, range, &th[..2], &self.bw_memo);
+            return bouc_wen_derivative(self.u, th, q, range, &base, coef[coef.len() - 1]);
         }
         // S'(z) x_q
         let slope = self.slope_at(self.weights_of(th), &coef[..self.knots.len() + 1]);
         let x = if q == nbw {
-            self.u
+            Cow::Borrowed(self.u)
         } else {
-            &self.x[q - nbw - 1]
+            self.x_whole(q - nbw - 1)
         };
-        slope.iter().zip(x).map(|(&d, &xq)| d * xq).collect()
+        slope.iter().zip(x.iter()).map(|(&d, &xq)| d * xq).collect()
     }
     fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec {
         let m = self.knots.len() + 1;
@@ -812,8 +1072,10 @@ impl TermFit for BoucWenTerm<'_> {
         let (b, g) = bouc_wen_params(th, self.range);
         vec![(Cow::Owned(bouc_wen_column(self.u, b, g)), true)]
     }
-    fn derivative(&self, th: &[f64], q: usize, cols: &[&[f64]], coef: &[f64]) -> Vec<f64> {
-        bouc_wen_derivative(self.u, th, q, self.range, cols[0], coef[0])
+    fn derivative(&self, th: &[f64], q: usize, coef: &[f64]) -> Vec<f64> {
+        let (b, g) = bouc_wen_params(th, self.range);
+        let base = bouc_wen_column(self.u, b, g);
+        bouc_wen_derivative(self.u, th, q, self.range, &base, coef[0])
     }
     fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec {
         let (b, g) = bouc_wen_params(th, self.range);
@@ -916,15 +1178,13 @@ impl Effect for HysteresisEffect {
         if reversals(u) < 2 {
             // no loop on this path's input (a cross path driven by a staircase, say): a
             // linear path, the gain column alone; check_record asks one input to reverse
-            return Some(Box::new(PiTerm {
+            return Some(Box::new(PiTerm::new(
                 u,
-                thresholds: Vec::new(),
-                sign: setup.sign,
-                plays: Vec::new(),
-                knots: Vec::new(),
-                ramps: Vec::new(),
-                bw: None,
-            }));
+                Vec::new(),
+                setup.sign,
+                Vec::new(),
+                None,
+            )));
         }
         // thresholds, knots and ranges from the samples fitted
         let seen = setup.fitted_input();
@@ -945,7 +1205,6 @@ impl Effect for HysteresisEffect {
                     .as_ref()
                     .map_or(setup.plays, |l| plays_for_levels(l.len(), setup.plays, v));
                 let thresholds = pi_thresholds(&seen, count);
-                let plays = plays_of(u, &thresholds);
                 // a negative path cannot carry a Bouc-Wen term (A > 0 in the plant file)
                 let bw = (v == 0 && setup.sign > 0.0).then(|| max_abs(&seen));
                 let knots = match (v, &values) {
@@ -953,19 +1212,7 @@ impl Effect for HysteresisEffect {
                     (0, None) => input_map_knots(&seen, input_map_ramps(count)),
                     _ => Vec::new(),
                 };
-                let ramps = knots
-                    .iter()
-                    .map(|&z| u.iter().map(|&x| dead_zone(x, z)).collect())
-                    .collect();
-                Box::new(PiTerm {
-                    u,
-                    thresholds,
-                    sign: setup.sign,
-                    plays,
-                    knots,
-                    ramps,
-                    bw,
-                })
+                Box::new(PiTerm::new(u, thresholds, setup.sign, knots, bw))
             }
         })
     }
@@ -1076,6 +1323,41 @@ pub fn reversals(u: &[f64]) -> usize {
 mod tests {
     use super::*;
 
+    /// A Prandtl-Ishlinskii term's columns asked a block of rows at a time (the plays
+    /// resuming from their states, nothing cached) are the same bits as over the whole record,
+    /// on a positive and a negative path.
+    #[test]
+    fn pi_columns_in_blocks_are_the_columns_of_the_whole_record() {
+        let u: Vec<f64> = (0..5000)
+            .map(|k| 3.0 * (k as f64 * 0.013).sin() * (1.0 + 0.5 * (k as f64 * 0.001).cos()))
+            .collect();
+        for sign in [1.0, -1.0] {
+            let thresholds = pi_thresholds(&u, 11);
+            let knots = input_map_knots(&u, 4);
+            let mut term = PiTerm::new(&u, thresholds, sign, knots, (sign > 0.0).then_some(3.0));
+            assert!(term.cached.is_some());
+            term.cached = None;
+            let th = [0.3, -0.2][..term.n_params()].to_vec();
+            let whole: Vec<Vec<f64>> = term
+                .columns(&th)
+                .into_iter()
+                .map(|(c, _)| c.into_owned())
+                .collect();
+            assert_eq!(whole.len(), term.n_columns());
+            let mut state = TermState::default();
+            let mut blocks = vec![Vec::new(); whole.len()];
+            let mut out = vec![Vec::new(); whole.len()];
+            let all = vec![true; out.len()];
+            for rows in [0..1, 1..777, 777..4096, 4096..5000] {
+                term.columns_block(&th, rows, &mut state, &mut out, &all);
+                for (b, c) in blocks.iter_mut().zip(&out) {
+                    b.extend_from_slice(c);
+                }
+            }
+            assert_eq!(blocks, whole, "sign {sign}");
+        }
+    }
+
     /// A continuous input keeps every knot of the input map and its plays; a staircase keeps
     /// the knots that have a level on each side (the first interval two), here 5 of 8, and the
     /// plays its levels determine.
@@ -1113,6 +1395,74 @@ mod tests {
         assert_eq!(plays_determined(&stairs, 7, 1), 7);
         assert_eq!(plays_determined(&stairs, 3, 0), 3);
         assert_eq!(plays_determined(&sine, 39, 0), 39);
+    }
+
+    /// The second stage's term computes the first stage's columns where they are asked when
+    /// it does not keep them (a long record): its columns a block at a time, and the
+    /// derivatives in the operator's weights, are the same bits as with the columns kept.
+    #[test]
+    fn the_output_map_term_streamed_is_the_term_with_its_columns_kept() {
+        let u: Vec<f64> = (0..6000)
+            .map(|k| 4.0 * (k as f64 * 0.011).sin() * (1.0 + 0.4 * (k as f64 * 0.0013).cos()))
+            .collect();
+        let pi = PrandtlIshlinskiiSpec {
+            linear_weight: 0.7,
+            thresholds: vec![0.5, 1.2, 2.0, 2.9],
+            weights: vec![0.2, 0.1, 0.05, 0.02],
+            initial_state: 0.0,
+            input_map: Some(DeadZoneSpec {
+                thresholds: vec![-2.0, 1.5],
+                weights: vec![0.03, -0.04],
+            }),
+            dead_zones: None,
+        };
+        let mut op = pi.check().unwrap().operator();
+        let z: Vec<f64> = u.iter().map(|&v| op.step(v)).collect();
+        let prev = super::super::fitting::PreviousPath {
+            output: std::sync::Arc::new(z),
+            spec: std::sync::Arc::new(HysteresisSpec::PrandtlIshlinskii(pi)),
+        };
+        let setup = PathSetup {
+            u: &u,
+            held_out: None,
+            ts: 1e-3,
+            sign: 1.0,
+            plays: 5,
+            plays_by_levels: false,
+            variant: 0,
+            previous: Some(prev.clone()),
+        };
+        let kept = OutputMapTerm::new(&setup, &prev, 4.0).unwrap();
+        let mut streamed = OutputMapTerm::new(&setup, &prev, 4.0).unwrap();
+        assert!(kept.x.cached.is_some());
+        streamed.x.cached = None;
+        // Bouc-Wen B and Gamma, then the weights: u, four plays, two ramps
+        let th = [0.2, -0.3, 0.01, 0.0, -0.02, 0.03, 0.0, 0.015, -0.01];
+        assert_eq!(kept.n_params(), th.len());
+        let whole: Vec<Vec<f64>> = kept
+            .columns(&th)
+            .into_iter()
+            .map(|(c, _)| c.into_owned())
+            .collect();
+        let mut state = TermState::default();
+        let mut out = vec![Vec::new(); whole.len()];
+        let mut blocks = vec![Vec::new(); whole.len()];
+        let all = vec![true; whole.len()];
+        for rows in [0..1, 1..2500, 2500..4096, 4096..6000] {
+            streamed.columns_block(&th, rows, &mut state, &mut out, &all);
+            for (b, c) in blocks.iter_mut().zip(&out) {
+                b.extend_from_slice(c);
+            }
+        }
+        assert_eq!(blocks, whole);
+        let coef: Vec<f64> = (0..whole.len()).map(|j| 0.1 + 0.05 * j as f64).collect();
+        for q in 0..th.len() {
+            assert_eq!(
+                kept.derivative(&th, q, &coef),
+                streamed.derivative(&th, q, &coef),
+                "parameter {q}"
+            );
+        }
     }
 
     /// The slopes of the piecewise-linear map fitted on the intervals between the knots

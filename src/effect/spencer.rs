@@ -337,12 +337,12 @@ impl TermFit for SpencerTerm<'_> {
         vec![(Cow::Owned(self.column(th)), true)]
     }
     /// A forward difference (the model is an ODE; its sensitivities would double its state).
-    fn derivative(&self, th: &[f64], q: usize, cols: &[&[f64]], coef: &[f64]) -> Vec<f64> {
+    fn derivative(&self, th: &[f64], q: usize, coef: &[f64]) -> Vec<f64> {
         let mut t2 = th.to_vec();
         t2[q] += FD_STEP;
         self.column(&t2)
             .iter()
-            .zip(cols[0])
+            .zip(&self.column(th))
             .map(|(a, b)| coef[0] * (a - b) / FD_STEP)
             .collect()
     }

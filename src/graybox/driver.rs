@@ -908,6 +908,42 @@ mod tests {
         }
     }
 
+    /// A long record's basis streamed in pieces (the terms and filters resuming from their
+    /// states, the sums added chunk by chunk) gives the same bits as the basis held whole:
+    /// the evaluation (cost, coefficients, residual) and Kaufman's normal equations, with a
+    /// held-out stretch across a piece's boundary.
+    #[test]
+    fn a_streamed_basis_gives_the_same_bits_as_one_held_whole() {
+        let chunk = crate::numeric::gram::CHUNK_ROWS;
+        let n = 5 * chunk / 2;
+        for (m, effects) in [
+            (1, "hysteresis,creep,dynamics"),
+            (1, "bouc-wen,creep,dynamics,viscous"),
+            (2, "hysteresis,dynamics,coupling"),
+        ] {
+            let rec = record(m, n);
+            let held = Some(chunk - 1000..chunk + 3000);
+            let (whole, th) = problem_at(&rec, effects, held.clone());
+            let (streamed, _) = problem_at(&rec, effects, held);
+            let streamed = streamed.with_piece_rows(Some(chunk));
+            assert!(whole.held_whole() && !streamed.held_whole(), "{effects}");
+            assert_eq!(streamed.pieces().len(), 3, "{effects}");
+            let a = whole.eval(&th, true).expect("a finite model");
+            let b = streamed.eval(&th, true).expect("a finite model");
+            assert!(a.passive_psi.is_some() && b.passive_psi.is_none());
+            assert_eq!(a.cost.to_bits(), b.cost.to_bits(), "{effects}: cost");
+            assert_eq!(a.coef, b.coef, "{effects}: coefficients");
+            assert_eq!(a.r, b.r, "{effects}: residual");
+            let free: Vec<usize> = (0..whole.n_theta()).collect();
+            let ja = whole.projected_normal_equations(&th, &a, &free);
+            let jb = streamed.projected_normal_equations(&th, &b, &free);
+            assert_eq!(ja, jb, "{effects}: J^T J and J^T r");
+            let s0 = whole.eval(&th, false).unwrap();
+            let s1 = streamed.eval(&th, false).unwrap();
+            assert_eq!(s0.cost.to_bits(), s1.cost.to_bits(), "{effects}: static");
+        }
+    }
+
     /// The grey-box fitter checks itself: for every effect combination, the analytic (and
     /// forward-difference) derivatives of the model's output at fixed linear coefficients agree
     /// with central differences of the whole model, parameter by parameter.

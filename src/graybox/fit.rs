@@ -24,7 +24,9 @@
 
 use super::nnls::{chol_solve, nnls_gram, NnlsSolution};
 use super::{FitOptions, GreyBoxError};
-use crate::effect::fitting::{FilterFit, OutputSetup, PathSetup, Prepared, TermFit, LIMIT};
+use crate::effect::fitting::{
+    FilterFit, FilterState, OutputSetup, PathSetup, Prepared, TermFit, TermState, LIMIT,
+};
 use crate::effect::{Effect, EffectSpec};
 use crate::numeric::gram;
 use crate::numeric::lm::{self, LeastSquares, LmSettings, LmStop};
@@ -120,6 +122,10 @@ pub(crate) struct OutputProblem<'a> {
     layout: Layout<'a>,
     /// The effects every path must have a spec of (written from the gain when unselected).
     required: Vec<&'static dyn Effect>,
+    /// Rows of a piece of a streamed pass (the record's length or more: held whole).
+    piece_rows: usize,
+    /// The buffers of a streamed record's passes, kept from one pass to the next.
+    pool: std::sync::Mutex<Vec<Vec<f64>>>,
 }
 
 /// One evaluation of the projected problem.
@@ -128,8 +134,9 @@ pub(crate) struct Eval {
     pub r: Vec<f64>,
     pub coef: Vec<f64>,
     /// The filtered basis columns of the passive set (`sol.passive`, in that order): what the
-    /// Jacobian's projection needs (the columns held at zero are dropped once solved).
-    passive_psi: Vec<Vec<f64>>,
+    /// Jacobian's projection needs (the columns held at zero are dropped once solved). `None`
+    /// on a record whose basis is streamed (computed again where the projection needs it).
+    pub(crate) passive_psi: Option<Vec<Vec<f64>>>,
     sol: NnlsSolution,
 }
 
@@ -137,8 +144,28 @@ impl Eval {
     /// Drop the basis columns (kept while Levenberg-Marquardt iterates from this point; a
     /// finished fit needs its cost and coefficients only).
     fn release_basis(&mut self) {
-        self.passive_psi = Vec::new();
+        self.passive_psi = None;
     }
+}
+
+/// Chunks of the row-block sums ([`gram::CHUNK_ROWS`]) in a piece of a streamed pass: the
+/// pieces start on chunk boundaries, so that sums over them are the same bits as over the
+/// whole record, and a piece keeps two threads busy.
+const PIECE_CHUNKS: usize = 4;
+
+/// The filtered basis of a record is held whole (computed once per evaluation) up to this
+/// size; beyond, it is streamed in pieces of [`PIECE_CHUNKS`] chunks and computed again by
+/// each pass that needs it (the fit's memory then does not grow with samples x columns).
+pub const WHOLE_BASIS_BYTES: usize = 128 << 20;
+
+/// What a streamed pass gives for each piece of the record.
+#[derive(Clone, Copy, PartialEq)]
+enum Columns {
+    /// The basis through the filters (without those left out of the static model when
+    /// `with_dynamics` is false), held-out and excluded rows zero.
+    Filtered { with_dynamics: bool },
+    /// The basis before the filters, every row.
+    Raw,
 }
 
 /// An effect chosen for a model, with its variant.
@@ -230,7 +257,8 @@ fn apply_chain_many(prepared: &[Prepared], xs: &mut [Vec<f64>]) {
     let mut cols: Vec<&mut [f64]> = xs.iter_mut().map(Vec::as_mut_slice).collect();
     for p in prepared {
         if let Prepared::Apply(f) = p {
-            f(&mut cols);
+            let mut fresh = vec![FilterState::new(); cols.len()];
+            f(&mut cols, &mut fresh);
         }
     }
 }
@@ -351,7 +379,44 @@ impl<'a> OutputProblem<'a> {
                 n_theta,
             },
             required,
+            piece_rows: usize::MAX,
+            pool: Default::default(),
         }
+        .with_piece_rows(None)
+    }
+
+    /// The same problem with its basis streamed in pieces of `rows` rows (rounded up to whole
+    /// chunks of [`gram::CHUNK_ROWS`]); `None`: held whole up to [`WHOLE_BASIS_BYTES`], in
+    /// pieces of [`PIECE_CHUNKS`] chunks beyond. The results are the same bits either way.
+    pub(crate) fn with_piece_rows(mut self, rows: Option<usize>) -> Self {
+        let n = self.y.len();
+        let whole = n.saturating_mul(self.layout.n_cols).saturating_mul(8) <= WHOLE_BASIS_BYTES;
+        self.piece_rows = match rows {
+            Some(r) => r.div_ceil(gram::CHUNK_ROWS).max(1) * gram::CHUNK_ROWS,
+            None if whole => usize::MAX,
+            None => PIECE_CHUNKS * gram::CHUNK_ROWS,
+        };
+        self
+    }
+
+    /// Whether the basis is held whole (one piece).
+    #[cfg(test)]
+    pub(crate) fn held_whole(&self) -> bool {
+        self.piece_rows >= self.y.len()
+    }
+
+    /// The pieces of a streamed pass, in order.
+    pub(crate) fn pieces(&self) -> Vec<Range<usize>> {
+        self.pieces_of(self.piece_rows)
+    }
+
+    /// The record cut in pieces of `rows` rows (the last shorter), in order.
+    fn pieces_of(&self, rows: usize) -> Vec<Range<usize>> {
+        let n = self.y.len();
+        let step = rows.min(n).max(1);
+        (0..n.div_ceil(step))
+            .map(|k| k * step..((k + 1) * step).min(n))
+            .collect()
     }
 
     pub fn n_theta(&self) -> usize {
@@ -389,34 +454,172 @@ impl<'a> OutputProblem<'a> {
         p
     }
 
-    /// The basis at `th` through the filters (without the dynamics for the static model),
-    /// held-out rows zero; the constant last.
-    fn filtered_basis(&self, th: &[f64], with_dynamics: bool) -> (Vec<Vec<f64>>, Vec<bool>) {
-        let (phi, cons) = self.basis(th);
-        let prepared = self.prepared(th, with_dynamics);
-        let unfiltered = self.layout.unfiltered;
-        // the raw columns are filtered in place, a few side by side (a term's own column is
-        // not copied): the basis and its filtered form are never held whole at once
-        let mut groups: Vec<(bool, Vec<Cow<'_, [f64]>>)> = Vec::new();
-        for (k, col) in phi.into_iter().enumerate() {
-            let filtered = k < unfiltered;
-            match groups.last_mut() {
-                Some((f, g)) if *f == filtered && g.len() < FILTER_GROUP => g.push(col),
-                _ => groups.push((filtered, vec![col])),
+    /// One pass over the record at `th`: `visit(rows, columns)` for each piece in order, with
+    /// the basis columns `wanted` (every column when `None`, in that order) on its rows, the
+    /// constant last. The terms resume from their states and the filters from theirs (a few
+    /// columns side by side, groups in parallel), so the columns are those of the whole
+    /// record. Returns which columns must have c >= 0, and, when `keep` is set and the pass
+    /// was one piece, every column over the whole record (the wanted ones as visited).
+    fn stream(
+        &self,
+        th: &[f64],
+        what: Columns,
+        wanted: Option<&[usize]>,
+        keep: bool,
+        mut visit: impl FnMut(Range<usize>, &[&[f64]]),
+    ) -> (Vec<bool>, Option<Vec<Vec<f64>>>) {
+        let m = self.layout.n_cols;
+        let all: Vec<usize>;
+        let wanted = match wanted {
+            Some(w) => w,
+            None => {
+                all = (0..m).collect();
+                &all
             }
-        }
-        let psi = groups
-            .into_par_iter()
-            .flat_map_iter(|(filtered, group)| {
-                let mut cols: Vec<Vec<f64>> = group.into_iter().map(Cow::into_owned).collect();
-                if filtered {
-                    apply_chain_many(&prepared, &mut cols);
-                }
-                cols.iter_mut().for_each(|c| self.hold_out(c));
-                cols
-            })
+        };
+        let prepared = match what {
+            Columns::Filtered { with_dynamics } => self.prepared(th, with_dynamics),
+            Columns::Raw => Vec::new(),
+        };
+        let invalid = prepared.iter().any(|p| matches!(p, Prepared::Invalid));
+        let mut is_wanted = vec![false; m];
+        wanted.iter().for_each(|&k| is_wanted[k] = true);
+        // the wanted columns that the filters act on (in column order), in groups side by
+        // side, each group with its filters' states (group, filter, column)
+        let filtered: Vec<bool> = (0..m)
+            .map(|k| is_wanted[k] && k < self.layout.unfiltered)
             .collect();
-        (psi, cons)
+        let count = filtered.iter().filter(|f| **f).count();
+        let mut states: Vec<Vec<Vec<FilterState>>> = (0..count)
+            .step_by(FILTER_GROUP)
+            .map(|g| vec![vec![FilterState::new(); FILTER_GROUP.min(count - g)]; prepared.len()])
+            .collect();
+        let terms: Vec<&PlacedTerm> = self.layout.terms().collect();
+        let mut term_states: Vec<TermState> = terms.iter().map(|_| TermState::default()).collect();
+        let mut cons = vec![false; m];
+        // the raw basis is summed row by row: pieces of a few chunks whatever the record
+        let pieces = match what {
+            Columns::Raw => self.pieces_of(self.piece_rows.min(PIECE_CHUNKS * gram::CHUNK_ROWS)),
+            Columns::Filtered { .. } => self.pieces(),
+        };
+        let single = pieces.len() <= 1;
+        // a streamed record's buffers are kept from one pass to the next (their pages are not
+        // handed back to the system and faulted in again)
+        let pooled = !single;
+        let mut bufs: Vec<Vec<f64>> = if pooled {
+            let mut pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
+            (0..m).map(|_| pool.pop().unwrap_or_default()).collect()
+        } else {
+            vec![Vec::new(); m]
+        };
+        for rows in pieces {
+            let len = rows.len();
+            for p in &self.layout.paths {
+                let b = &mut bufs[p.gain_col];
+                b.clear();
+                b.extend_from_slice(&self.u[p.input][rows.clone()]);
+            }
+            for (t, st) in terms.iter().zip(&mut term_states) {
+                let th_t = &th[t.params.clone()];
+                let out = &mut bufs[t.cols.clone()];
+                let want = &is_wanted[t.cols.clone()];
+                let flags = t.term.columns_block(th_t, rows.clone(), st, out, want);
+                cons[t.cols.clone()].copy_from_slice(&flags);
+            }
+            bufs[m - 1].clear();
+            bufs[m - 1].resize(len, 1.0);
+            if what != Columns::Raw {
+                let mut targets: Vec<&mut Vec<f64>> = bufs
+                    .iter_mut()
+                    .zip(&filtered)
+                    .filter_map(|(b, f)| f.then_some(b))
+                    .collect();
+                if invalid {
+                    targets.iter_mut().for_each(|b| b.fill(f64::NAN));
+                } else if !prepared.is_empty() {
+                    targets
+                        .par_chunks_mut(FILTER_GROUP)
+                        .zip(states.par_iter_mut())
+                        .for_each(|(group, st)| {
+                            let mut slices: Vec<&mut [f64]> =
+                                group.iter_mut().map(|b| b.as_mut_slice()).collect();
+                            for (p, s) in prepared.iter().zip(st.iter_mut()) {
+                                if let Prepared::Apply(f) = p {
+                                    f(&mut slices, s);
+                                }
+                            }
+                        });
+                }
+                bufs.par_iter_mut()
+                    .zip(&is_wanted)
+                    .filter(|(_, w)| **w)
+                    .for_each(|(c, _)| self.hold_out_rows(c, rows.clone()));
+            }
+            let view: Vec<&[f64]> = wanted.iter().map(|&k| bufs[k].as_slice()).collect();
+            visit(rows, &view);
+        }
+        if keep && single {
+            return (cons, Some(bufs));
+        }
+        if pooled {
+            self.pool
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .extend(bufs);
+        }
+        (cons, None)
+    }
+
+    /// The basis at `th` through the filters (without the dynamics for the static model),
+    /// held-out rows zero, the constant last: whole columns.
+    fn filtered_basis(&self, th: &[f64], with_dynamics: bool) -> (Vec<Vec<f64>>, Vec<bool>) {
+        let n = self.y.len();
+        let mut psi: Vec<Vec<f64>> = Vec::new();
+        let what = Columns::Filtered { with_dynamics };
+        let (cons, held) = self.stream(th, what, None, true, |rows, cols| {
+            if rows.start == 0 && rows.end == n {
+                return;
+            }
+            if psi.is_empty() {
+                psi = cols.iter().map(|_| Vec::with_capacity(n)).collect();
+            }
+            for (p, c) in psi.iter_mut().zip(cols) {
+                p.extend_from_slice(c);
+            }
+        });
+        (held.unwrap_or(psi), cons)
+    }
+
+    /// The sum over the record's row blocks ([`gram::sum_by_row_blocks`]) of `block(rows,
+    /// psi)`, `psi` the filtered basis columns `cols` (at `th`, with the dynamics) on those
+    /// rows: taken from `held` (those columns whole) when given, else streamed. The same bits
+    /// either way.
+    fn sum_over_basis(
+        &self,
+        th: &[f64],
+        held: Option<&[Vec<f64>]>,
+        cols: &[usize],
+        (r, c): (usize, usize),
+        block: impl Fn(Range<usize>, &[&[f64]]) -> DMatrix<f64> + Sync,
+    ) -> DMatrix<f64> {
+        if let Some(held) = held {
+            return gram::sum_by_row_blocks(self.y.len(), r, c, |rows| {
+                let psi: Vec<&[f64]> = held.iter().map(|p| &p[rows.clone()]).collect();
+                block(rows, &psi)
+            });
+        }
+        let mut sum = gram::ChunkSum::new(r, c);
+        let what = Columns::Filtered {
+            with_dynamics: true,
+        };
+        self.stream(th, what, Some(cols), false, |piece, psi| {
+            sum.add(gram::chunk_sums(piece.len(), r, c, |local| {
+                let at = piece.start + local.start..piece.start + local.end;
+                let p: Vec<&[f64]> = psi.iter().map(|v| &v[local.clone()]).collect();
+                block(at, &p)
+            }));
+        });
+        sum.total()
     }
 
     /// The ridge of `ridges` (simplest model, i.e. strongest ridge, first) that a blocked
@@ -468,6 +671,23 @@ impl<'a> OutputProblem<'a> {
         ridges[crate::metrics::simplest_not_clearly_worse(&errors)]
     }
 
+    /// Zero the held-out rows of a column's rows `rows` (`c` holds those rows).
+    fn hold_out_rows(&self, c: &mut [f64], rows: Range<usize>) {
+        if let Some(r) = &self.held_out {
+            let (a, b) = (r.start.max(rows.start), r.end.min(rows.end));
+            if a < b {
+                c[a - rows.start..b - rows.start].fill(0.0);
+            }
+        }
+        if let Some(m) = &self.excluded {
+            for (v, &x) in c.iter_mut().zip(&m[rows]) {
+                if x {
+                    *v = 0.0;
+                }
+            }
+        }
+    }
+
     /// Zero a column's held-out rows.
     fn hold_out(&self, c: &mut [f64]) {
         if let Some(r) = &self.held_out {
@@ -494,6 +714,7 @@ impl<'a> OutputProblem<'a> {
 
     /// The raw basis columns (before the filters) and which must have c >= 0; the constant
     /// column (offset) is last.
+    #[cfg(test)]
     fn basis(&self, th: &[f64]) -> (Vec<Cow<'_, [f64]>>, Vec<bool>) {
         let mut cols: Vec<Cow<[f64]>> = Vec::with_capacity(self.layout.n_cols);
         let mut cons = Vec::with_capacity(self.layout.n_cols);
@@ -521,10 +742,22 @@ impl<'a> OutputProblem<'a> {
     /// Evaluate: basis through the filters, (non-negative) least squares, residual.
     /// `with_dynamics = false` evaluates the static model (initialisation).
     pub fn eval(&self, th: &[f64], with_dynamics: bool) -> Option<Eval> {
-        let (psi, cons) = self.filtered_basis(th, with_dynamics);
-        let m = psi.len();
-        let cols: Vec<&[f64]> = psi.iter().map(Vec::as_slice).collect();
-        let (mut g, b) = normal_equations(&cols, &self.y);
+        let m = self.layout.n_cols;
+        let what = Columns::Filtered { with_dynamics };
+        // the normal equations [Psi | y]^T [Psi | y], the upper triangle, by row blocks
+        let mut sum = gram::ChunkSum::new(m + 1, m + 1);
+        let (cons, held) = self.stream(th, what, None, true, |rows, psi| {
+            let mut all = psi.to_vec();
+            all.push(&self.y[rows.clone()]);
+            sum.add(gram::chunk_sums(rows.len(), m + 1, m + 1, |r| {
+                let x = gram::block_of(&all, r);
+                gram::tr_mul_block(&x, &x, true)
+            }));
+        });
+        let mut x = sum.total();
+        gram::mirror_upper(&mut x);
+        let mut g = x.view((0, 0), (m, m)).into_owned();
+        let b = x.view((0, m), (m, 1)).column(0).into_owned();
         if g.iter().any(|v| !v.is_finite()) || b.iter().any(|v| !v.is_finite()) {
             return None;
         }
@@ -538,12 +771,25 @@ impl<'a> OutputProblem<'a> {
             g[(i, i)] += self.ridge * energy[i];
         }
         let sol = nnls_gram(&g, &b, &cons);
+        // the residual, the columns subtracted in order (from the columns held, or a second
+        // pass over the record)
+        let used: Vec<usize> = (0..m).filter(|&i| sol.coef[i] != 0.0).collect();
         let mut r = self.y.to_vec();
-        for (c, col) in sol.coef.iter().zip(&psi) {
-            if *c != 0.0 {
-                for (rv, v) in r.iter_mut().zip(col) {
+        let mut subtract = |rows: Range<usize>, cols: &[&[f64]]| {
+            for (&i, col) in used.iter().zip(cols) {
+                let c = sol.coef[i];
+                for (rv, v) in r[rows.clone()].iter_mut().zip(col.iter()) {
                     *rv -= c * v;
                 }
+            }
+        };
+        match &held {
+            Some(psi) => {
+                let cols: Vec<&[f64]> = used.iter().map(|&i| psi[i].as_slice()).collect();
+                subtract(0..self.y.len(), &cols);
+            }
+            None => {
+                self.stream(th, what, Some(&used), false, subtract);
             }
         }
         let penalty: f64 = (0..m)
@@ -554,12 +800,12 @@ impl<'a> OutputProblem<'a> {
         if !cost.is_finite() {
             return None;
         }
-        let mut psi = psi;
-        let passive_psi = sol
-            .passive
-            .iter()
-            .map(|&i| std::mem::take(&mut psi[i]))
-            .collect();
+        let passive_psi = held.map(|mut psi| {
+            sol.passive
+                .iter()
+                .map(|&i| std::mem::take(&mut psi[i]))
+                .collect()
+        });
         Some(Eval {
             cost,
             r,
@@ -587,11 +833,6 @@ impl<'a> OutputProblem<'a> {
         let n = self.y.len();
         let p = free.len();
         let sol = &ev.sol;
-        debug_assert_eq!(
-            ev.passive_psi.len(),
-            sol.passive.len(),
-            "a released evaluation"
-        );
         let derivatives: Vec<(Vec<f64>, bool)> = self.with_derivative_jobs(th, &ev.coef, |jobs| {
             let mut by_param: Vec<Option<&JacobianJob<'_>>> = vec![None; self.layout.n_theta];
             for (q, job) in &jobs {
@@ -615,11 +856,18 @@ impl<'a> OutputProblem<'a> {
                 .collect()
         });
         let d: Vec<&[f64]> = derivatives.iter().map(|(c, _)| c.as_slice()).collect();
-        let passive: Vec<&[f64]> = ev.passive_psi.iter().map(Vec::as_slice).collect();
+        let held = ev.passive_psi.as_deref();
+        let np = sol.passive.len();
         // A = S (L L^T)^-1 S P^T D, column by column (zero for a derivative not projected)
-        let mut alpha = DMatrix::zeros(passive.len(), p);
-        if !passive.is_empty() {
-            let pd = gram::cross_products(&passive, &d);
+        let mut alpha = DMatrix::zeros(np, p);
+        if np > 0 {
+            let pd = self.sum_over_basis(th, held, &sol.passive, (np, p), |rows, passive| {
+                gram::tr_mul_block(
+                    &gram::block_of(passive, 0..rows.len()),
+                    &gram::block_of(&d, rows),
+                    false,
+                )
+            });
             for (q, (_, finite)) in derivatives.iter().enumerate() {
                 if !finite {
                     continue;
@@ -637,19 +885,18 @@ impl<'a> OutputProblem<'a> {
             }
         }
         let r = ev.r.as_slice();
-        let products = gram::sum_by_row_blocks(n, p, p + 1, |rows| {
+        let products = self.sum_over_basis(th, held, &sol.passive, (p, p + 1), |rows, passive| {
             // [J | r] on the block: J = D - P A, the passive columns subtracted in order
             let mut cols = d.clone();
             cols.push(r);
             let mut jr = gram::block_of(&cols, rows.clone());
             let len = rows.len();
             for (k, pk) in passive.iter().enumerate() {
-                let pk = &pk[rows.clone()];
                 for q in 0..p {
                     let a = alpha[(k, q)];
                     if a != 0.0 {
                         let jq = &mut jr.as_mut_slice()[q * len..(q + 1) * len];
-                        for (v, x) in jq.iter_mut().zip(pk) {
+                        for (v, x) in jq.iter_mut().zip(pk.iter()) {
                             *v -= a * x;
                         }
                     }
@@ -689,11 +936,12 @@ impl<'a> OutputProblem<'a> {
                 let v: Vec<f64> = sol
                     .passive
                     .iter()
-                    .zip(&ev.passive_psi)
+                    .zip(ev.passive_psi.as_ref().expect("a basis held whole"))
                     .map(|(&i, p)| sum(p, &c) * sol.scale[i])
                     .collect();
                 let a = chol_solve(&sol.chol_l, &v);
-                for (k, (&i, p)) in sol.passive.iter().zip(&ev.passive_psi).enumerate() {
+                let held = ev.passive_psi.as_ref().expect("a basis held whole");
+                for (k, (&i, p)) in sol.passive.iter().zip(held).enumerate() {
                     for (cv, pv) in c.iter_mut().zip(p) {
                         *cv -= a[k] * sol.scale[i] * pv;
                     }
@@ -746,18 +994,20 @@ impl<'a> OutputProblem<'a> {
         run: impl FnOnce(Vec<(usize, JacobianJob<'_>)>) -> R,
     ) -> R {
         let n = self.y.len();
-        let (phi, _) = self.basis(th);
         let prepared = self.prepared(th, true);
-        // the unfiltered sum of the paths
-        let mut w = vec![0.0; n];
+        // the unfiltered sum of the paths, the columns added in order (a pass over the basis
+        // before the filters)
         let last = self.layout.unfiltered;
-        for (col, &c) in phi[..last].iter().zip(&coef[..last]) {
-            if c != 0.0 {
-                for (wv, v) in w.iter_mut().zip(col.iter()) {
+        let used: Vec<usize> = (0..last).filter(|&i| coef[i] != 0.0).collect();
+        let mut w = vec![0.0; n];
+        self.stream(th, Columns::Raw, Some(&used), false, |rows, cols| {
+            for (&i, col) in used.iter().zip(cols) {
+                let c = coef[i];
+                for (wv, v) in w[rows.clone()].iter_mut().zip(col.iter()) {
                     *wv += c * v;
                 }
             }
-        }
+        });
         let mut jobs: Vec<(usize, JacobianJob<'_>)> = Vec::new();
         let prepared = &prepared;
         for (i, f) in self.layout.filters.iter().enumerate() {
@@ -779,18 +1029,12 @@ impl<'a> OutputProblem<'a> {
         }
         for path in &self.layout.paths {
             for t in &path.terms {
-                if t.params.is_empty() {
-                    continue;
-                }
-                let cols: Vec<&[f64]> = phi[t.cols.clone()].iter().map(|c| c.as_ref()).collect();
-                let cols = std::sync::Arc::new(cols);
                 for q in 0..t.params.len() {
-                    let cols = cols.clone();
                     let coef = &coef[t.cols.clone()];
                     jobs.push((
                         t.params.start + q,
                         Box::new(move || {
-                            let d = t.term.derivative(&th[t.params.clone()], q, &cols, coef);
+                            let d = t.term.derivative(&th[t.params.clone()], q, coef);
                             apply_chain_owned(prepared, d)
                         }),
                     ));
@@ -799,14 +1043,11 @@ impl<'a> OutputProblem<'a> {
         }
         for t in &self.layout.output_terms {
             // after the filters: its derivative as it is
-            let cols: Vec<&[f64]> = phi[t.cols.clone()].iter().map(|c| c.as_ref()).collect();
-            let cols = std::sync::Arc::new(cols);
             for q in 0..t.params.len() {
-                let cols = cols.clone();
                 let coef = &coef[t.cols.clone()];
                 jobs.push((
                     t.params.start + q,
-                    Box::new(move || t.term.derivative(&th[t.params.clone()], q, &cols, coef)),
+                    Box::new(move || t.term.derivative(&th[t.params.clone()], q, coef)),
                 ));
             }
         }

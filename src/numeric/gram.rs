@@ -39,11 +39,25 @@ pub fn sum_by_row_blocks<F>(n: usize, r: usize, c: usize, block: F) -> DMatrix<f
 where
     F: Fn(Range<usize>) -> DMatrix<f64> + Sync,
 {
-    let chunk = BLOCK_ROWS * CHUNK_BLOCKS;
-    let chunks: Vec<Range<usize>> = (0..n.div_ceil(chunk))
-        .map(|k| k * chunk..((k + 1) * chunk).min(n))
+    let mut sum = ChunkSum::new(r, c);
+    sum.add(chunk_sums(n, r, c, block));
+    sum.total()
+}
+
+/// Rows per chunk (a task's rows).
+pub const CHUNK_ROWS: usize = BLOCK_ROWS * CHUNK_BLOCKS;
+
+/// The chunks' sums of [`sum_by_row_blocks`] over `n` rows, in order (chunks in parallel):
+/// added in order to a [`ChunkSum`], the sums of consecutive parts of a record whose starts
+/// are multiples of [`CHUNK_ROWS`] give the same bits as the sum over the whole record.
+pub fn chunk_sums<F>(n: usize, r: usize, c: usize, block: F) -> Vec<DMatrix<f64>>
+where
+    F: Fn(Range<usize>) -> DMatrix<f64> + Sync,
+{
+    let chunks: Vec<Range<usize>> = (0..n.div_ceil(CHUNK_ROWS))
+        .map(|k| k * CHUNK_ROWS..((k + 1) * CHUNK_ROWS).min(n))
         .collect();
-    let sums: Vec<DMatrix<f64>> = chunks
+    chunks
         .into_par_iter()
         .map(|rows| {
             let mut s = DMatrix::zeros(r, c);
@@ -55,9 +69,34 @@ where
             }
             s
         })
-        .collect();
-    sums.into_iter()
-        .fold(DMatrix::zeros(r, c), |acc, s| acc + s)
+        .collect()
+}
+
+/// A running sum of chunks' sums ([`chunk_sums`]), added in order.
+pub struct ChunkSum(DMatrix<f64>);
+
+impl ChunkSum {
+    pub fn new(r: usize, c: usize) -> Self {
+        ChunkSum(DMatrix::zeros(r, c))
+    }
+    /// Add the sums of the next chunks, in order.
+    pub fn add(&mut self, sums: Vec<DMatrix<f64>>) {
+        for s in sums {
+            self.0 = std::mem::replace(&mut self.0, DMatrix::zeros(0, 0)) + s;
+        }
+    }
+    pub fn total(self) -> DMatrix<f64> {
+        self.0
+    }
+}
+
+/// The upper triangle of a Gram matrix mirrored below (exactly symmetric).
+pub fn mirror_upper(g: &mut DMatrix<f64>) {
+    for i in 0..g.nrows() {
+        for j in 0..i {
+            g[(i, j)] = g[(j, i)];
+        }
+    }
 }
 
 /// The rows `rows` of the columns `cols`, as a contiguous column-major matrix.
@@ -180,11 +219,7 @@ pub fn gram(a: &[&[f64]]) -> DMatrix<f64> {
         let x = block_of(a, rows);
         tr_mul_block(&x, &x, true)
     });
-    for i in 0..k {
-        for j in 0..i {
-            g[(i, j)] = g[(j, i)];
-        }
-    }
+    mirror_upper(&mut g);
     g
 }
 
