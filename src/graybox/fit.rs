@@ -263,6 +263,24 @@ fn apply_chain_many(prepared: &[Prepared], xs: &mut [Vec<f64>]) {
     }
 }
 
+/// `out += sign * sum_k coef_k cols_k` (`sign` +1 or -1), the columns added in order at
+/// each row (rows in parallel blocks: the same bits as one after the other).
+fn add_columns(out: &mut [f64], cols: &[&[f64]], coef: &[f64], sign: f64) {
+    out.par_chunks_mut(gram::BLOCK_ROWS)
+        .enumerate()
+        .for_each(|(b, o)| {
+            let at = b * gram::BLOCK_ROWS;
+            for (col, &c) in cols.iter().zip(coef) {
+                let col = &col[at..at + o.len()];
+                if sign < 0.0 {
+                    o.iter_mut().zip(col).for_each(|(v, x)| *v -= c * x);
+                } else {
+                    o.iter_mut().zip(col).for_each(|(v, x)| *v += c * x);
+                }
+            }
+        });
+}
+
 /// Columns filtered together (the resonator's recursion runs this many side by side).
 const FILTER_GROUP: usize = 4;
 
@@ -750,8 +768,8 @@ impl<'a> OutputProblem<'a> {
             let mut all = psi.to_vec();
             all.push(&self.y[rows.clone()]);
             sum.add(gram::chunk_sums(rows.len(), m + 1, m + 1, |r| {
-                let x = gram::block_of(&all, r);
-                gram::tr_mul_block(&x, &x, true)
+                let x: Vec<&[f64]> = all.iter().map(|c| &c[r.clone()]).collect();
+                gram::tr_mul_slices(&x, &x, true)
             }));
         });
         let mut x = sum.total();
@@ -775,13 +793,9 @@ impl<'a> OutputProblem<'a> {
         // pass over the record)
         let used: Vec<usize> = (0..m).filter(|&i| sol.coef[i] != 0.0).collect();
         let mut r = self.y.to_vec();
+        let c_used: Vec<f64> = used.iter().map(|&i| sol.coef[i]).collect();
         let mut subtract = |rows: Range<usize>, cols: &[&[f64]]| {
-            for (&i, col) in used.iter().zip(cols) {
-                let c = sol.coef[i];
-                for (rv, v) in r[rows.clone()].iter_mut().zip(col.iter()) {
-                    *rv -= c * v;
-                }
-            }
+            add_columns(&mut r[rows], cols, &c_used, -1.0);
         };
         match &held {
             Some(psi) => {
@@ -862,11 +876,8 @@ impl<'a> OutputProblem<'a> {
         let mut alpha = DMatrix::zeros(np, p);
         if np > 0 {
             let pd = self.sum_over_basis(th, held, &sol.passive, (np, p), |rows, passive| {
-                gram::tr_mul_block(
-                    &gram::block_of(passive, 0..rows.len()),
-                    &gram::block_of(&d, rows),
-                    false,
-                )
+                let d: Vec<&[f64]> = d.iter().map(|c| &c[rows.clone()]).collect();
+                gram::tr_mul_slices(passive, &d, false)
             });
             for (q, (_, finite)) in derivatives.iter().enumerate() {
                 if !finite {
@@ -1000,13 +1011,9 @@ impl<'a> OutputProblem<'a> {
         let last = self.layout.unfiltered;
         let used: Vec<usize> = (0..last).filter(|&i| coef[i] != 0.0).collect();
         let mut w = vec![0.0; n];
+        let c_used: Vec<f64> = used.iter().map(|&i| coef[i]).collect();
         self.stream(th, Columns::Raw, Some(&used), false, |rows, cols| {
-            for (&i, col) in used.iter().zip(cols) {
-                let c = coef[i];
-                for (wv, v) in w[rows.clone()].iter_mut().zip(col.iter()) {
-                    *wv += c * v;
-                }
-            }
+            add_columns(&mut w[rows], cols, &c_used, 1.0);
         });
         let mut jobs: Vec<(usize, JacobianJob<'_>)> = Vec::new();
         let prepared = &prepared;

@@ -4,9 +4,9 @@
 //! pair at a time over the whole record, each product reads two columns from memory: on a long
 //! record, whose columns do not fit in the caches, the fit is then bound by memory traffic
 //! (m^2 / 2 column reads for m columns) and its time grows faster than the record. Here the
-//! record is cut into blocks of [`BLOCK_ROWS`] rows; each block's columns are copied into a
-//! small contiguous matrix (which stays in the caches) and multiplied there, so every column is
-//! read from memory once per product.
+//! record is cut into blocks of [`BLOCK_ROWS`] rows; the block's columns (a few MB together)
+//! stay in the caches while every product of the block is taken, so every column is read from
+//! memory once per product.
 //!
 //! Determinism: the blocks are fixed by the record's length alone, grouped into chunks of
 //! [`CHUNK_BLOCKS`] summed in order inside a chunk, and the chunks' sums are added in order;
@@ -162,39 +162,46 @@ fn dot4(a: &[f64], b: [&[f64]; 4]) -> [f64; 4] {
 /// product per pair of columns on the block (in the caches); only the upper triangle when `b`
 /// is `a` itself and `symmetric` is set (the rest left zero).
 pub fn tr_mul_block(a: &DMatrix<f64>, b: &DMatrix<f64>, symmetric: bool) -> DMatrix<f64> {
-    let (rows, k) = a.shape();
-    let c = b.ncols();
+    let rows = a.nrows();
     assert_eq!(b.nrows(), rows, "blocks of different rows");
+    tr_mul_slices(&columns_of(a), &columns_of(b), symmetric)
+}
+
+/// The columns of a column-major matrix as slices.
+fn columns_of(m: &DMatrix<f64>) -> Vec<&[f64]> {
+    let rows = m.nrows();
+    (0..m.ncols())
+        .map(|j| &m.as_slice()[j * rows..(j + 1) * rows])
+        .collect()
+}
+
+/// [`tr_mul_block`] of the columns' slices on a block of rows (each slice contiguous and in the
+/// caches, so nothing is copied): the same bits.
+pub fn tr_mul_slices(a: &[&[f64]], b: &[&[f64]], symmetric: bool) -> DMatrix<f64> {
+    let (k, c) = (a.len(), b.len());
+    let rows = a.first().or(b.first()).map_or(0, |x| x.len());
     let mut out = DMatrix::zeros(k, c);
     if rows == 0 {
         return out;
     }
-    let (a, b) = (a.as_slice(), b.as_slice());
-    fn col(m: &[f64], rows: usize, j: usize) -> &[f64] {
-        &m[j * rows..(j + 1) * rows]
-    }
+    assert!(
+        a.iter().chain(b).all(|x| x.len() == rows),
+        "blocks of different rows"
+    );
     for i in 0..k {
-        let ai = col(a, rows, i);
+        let ai = a[i];
         let mut j = if symmetric { i.min(c) } else { 0 };
         // four columns of `b` against one of `a`: the column of `a` is loaded once for four
         // products (each product's arithmetic is that of `dot`)
         while j + 4 <= c {
-            let d = dot4(
-                ai,
-                [
-                    col(b, rows, j),
-                    col(b, rows, j + 1),
-                    col(b, rows, j + 2),
-                    col(b, rows, j + 3),
-                ],
-            );
+            let d = dot4(ai, [b[j], b[j + 1], b[j + 2], b[j + 3]]);
             for (l, v) in d.into_iter().enumerate() {
                 out[(i, j + l)] = v;
             }
             j += 4;
         }
         for j in j..c {
-            out[(i, j)] = dot(ai, col(b, rows, j));
+            out[(i, j)] = dot(ai, b[j]);
         }
     }
     out
@@ -205,7 +212,9 @@ pub fn cross_products(a: &[&[f64]], b: &[&[f64]]) -> DMatrix<f64> {
     let n = a.first().or(b.first()).map_or(0, |c| c.len());
     debug_assert!(a.iter().chain(b).all(|c| c.len() == n));
     sum_by_row_blocks(n, a.len(), b.len(), |rows| {
-        tr_mul_block(&block_of(a, rows.clone()), &block_of(b, rows), false)
+        let a: Vec<&[f64]> = a.iter().map(|x| &x[rows.clone()]).collect();
+        let b: Vec<&[f64]> = b.iter().map(|x| &x[rows.clone()]).collect();
+        tr_mul_slices(&a, &b, false)
     })
 }
 
@@ -216,8 +225,8 @@ pub fn gram(a: &[&[f64]]) -> DMatrix<f64> {
     debug_assert!(a.iter().all(|c| c.len() == n));
     let k = a.len();
     let mut g = sum_by_row_blocks(n, k, k, |rows| {
-        let x = block_of(a, rows);
-        tr_mul_block(&x, &x, true)
+        let x: Vec<&[f64]> = a.iter().map(|c| &c[rows.clone()]).collect();
+        tr_mul_slices(&x, &x, true)
     });
     mirror_upper(&mut g);
     g
