@@ -335,34 +335,53 @@ fn where_left(outputs: &[OutputDiagnosis]) -> Vec<String> {
         .collect()
 }
 
-/// The banks of every effect for one output (none for a record without inputs).
-fn banks(ctx: &BasisContext) -> Vec<crate::effect::basis::BasisBank> {
+/// The bank of `effect` for one output (none for a record without inputs, nor a bank of no
+/// signal).
+fn bank_of(ctx: &BasisContext, effect: EffectName) -> Option<crate::effect::basis::BasisBank> {
     if ctx.inputs.is_empty() {
-        return Vec::new();
+        return None;
     }
-    registry::effects()
-        .into_iter()
-        .filter_map(|effect| effect.basis(ctx))
+    registry::effect(effect)?
+        .basis(ctx)
         .filter(|b| !b.signals.is_empty())
-        .collect()
 }
 
-/// How much of the residual `e` each bank explains out of sample, best first. A present effect
-/// is scored alone (how much of the residual is its misfit); a missing one on top of the
-/// present ones, or of the prediction alone when the present banks extrapolate badly out of
-/// sample.
+/// How much of the residual `e` each bank explains out of sample, best first, and each
+/// bank's size. A present effect is scored alone (how much of the residual is its misfit); a
+/// missing one on top of the present ones, or of the prediction alone when the present banks
+/// extrapolate badly out of sample. The banks of the effects the model has are
+/// `model_banks`; the others are computed one at a time (a long record's banks are not held
+/// together).
 fn score_banks(
     e: &[f64],
-    yhat: &[f64],
-    banks: &[crate::effect::basis::BasisBank],
+    ctx: &BasisContext,
+    model_banks: &[crate::effect::basis::BasisBank],
     baseline: &[&[f64]],
     model_effects: &[EffectName],
-) -> Vec<EffectScore> {
+) -> (Vec<EffectScore>, Vec<(EffectName, usize)>) {
     let mut scores = Vec::new();
-    for bank in banks {
-        let in_model = model_effects.contains(&bank.effect);
+    let mut sizes = Vec::new();
+    for effect in registry::effects() {
+        let name = effect.name();
+        let in_model = model_effects.contains(&name);
+        let computed;
+        let bank = if in_model {
+            match model_banks.iter().find(|b| b.effect == name) {
+                Some(b) => b,
+                None => continue,
+            }
+        } else {
+            match bank_of(ctx, name) {
+                Some(b) => {
+                    computed = b;
+                    &computed
+                }
+                None => continue,
+            }
+        };
+        sizes.push((bank.effect, bank.signals.len()));
         let cols: Vec<&[f64]> = bank.signals.iter().map(Vec::as_slice).collect();
-        let minimal: &[&[f64]] = &[yhat];
+        let minimal: &[&[f64]] = &[ctx.prediction];
         let bases: Vec<&[&[f64]]> = if in_model {
             vec![minimal]
         } else {
@@ -379,32 +398,37 @@ fn score_banks(
         }
     }
     scores.sort_by(|a, b| b.explained.total_cmp(&a.explained));
-    scores
+    (scores, sizes)
 }
 
 /// Parsimony: a smaller bank that leaves the top bank almost nothing to add (nested
 /// out-of-sample test) names the simpler effect (e.g. a dashpot rather than a mode when the
 /// model is a static gain, whose prediction's lags contain the input's rate). Returns the
-/// simpler effect and what the top bank adds on top of it.
+/// simpler effect and what the top bank adds on top of it. `sizes` are the banks' sizes.
 fn simpler_effect(
     e: &[f64],
     m: EffectName,
     scores: &[EffectScore],
-    banks: &[crate::effect::basis::BasisBank],
+    ctx: &BasisContext,
+    sizes: &[(EffectName, usize)],
     baseline: &[&[f64]],
     threshold: f64,
 ) -> Option<(EffectName, f64)> {
-    let bank_of = |e: EffectName| banks.iter().find(|b| b.effect == e);
-    let tb = bank_of(m)?;
+    let size_of = |e: EffectName| sizes.iter().find(|(n, _)| *n == e).map(|(_, s)| *s);
+    let top_size = size_of(m)?;
     let mut cands: Vec<&EffectScore> = scores
         .iter()
         .filter(|s| !s.in_model && s.effect != m && s.explained >= threshold)
-        .filter(|s| bank_of(s.effect).is_some_and(|b| b.signals.len() < tb.signals.len()))
+        .filter(|s| size_of(s.effect).is_some_and(|n| n < top_size))
         .collect();
-    cands.sort_by_key(|s| bank_of(s.effect).map_or(usize::MAX, |b| b.signals.len()));
+    cands.sort_by_key(|s| size_of(s.effect).unwrap_or(usize::MAX));
+    if cands.is_empty() {
+        return None;
+    }
+    let tb = bank_of(ctx, m)?;
     let top_cols: Vec<&[f64]> = tb.signals.iter().map(Vec::as_slice).collect();
     for c in cands {
-        let Some(cb) = bank_of(c.effect) else {
+        let Some(cb) = bank_of(ctx, c.effect) else {
             continue;
         };
         let mut base = baseline.to_vec();
@@ -441,14 +465,18 @@ fn diagnose_output(
         prediction: yhat,
         ts: rec.ts,
     };
-    let banks = banks(&ctx);
     // the baseline: the prediction and the banks of the effects the model has, so that a
     // misfit of a present effect is not taken for a missing one
+    let model_banks: Vec<_> = registry::effects()
+        .into_iter()
+        .filter(|x| model_effects.contains(&x.name()))
+        .filter_map(|x| bank_of(&ctx, x.name()))
+        .collect();
     let mut baseline: Vec<&[f64]> = vec![yhat];
-    for b in banks.iter().filter(|b| model_effects.contains(&b.effect)) {
+    for b in &model_banks {
         baseline.extend(b.signals.iter().map(Vec::as_slice));
     }
-    let scores = score_banks(&e, yhat, &banks, &baseline, model_effects);
+    let (scores, sizes) = score_banks(&e, &ctx, &model_banks, &baseline, model_effects);
     let w = whiteness(&e, &named, opts.max_lag);
     let shape = match inputs.get(direct) {
         Some(u) => residual::describe(&e, yhat, u, w.white),
@@ -465,7 +493,8 @@ fn diagnose_output(
         .map(|s| s.effect);
     let mut simpler_than: Option<(EffectName, f64)> = None;
     if let (Some(m), Some(top)) = (missing, top) {
-        if let Some((c, f)) = simpler_effect(&e, m, &scores, &banks, &baseline, opts.threshold) {
+        let simpler = simpler_effect(&e, m, &scores, &ctx, &sizes, &baseline, opts.threshold);
+        if let Some((c, f)) = simpler {
             missing = Some(c);
             simpler_than = Some((top.effect, f));
         }
