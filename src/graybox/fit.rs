@@ -137,6 +137,9 @@ pub(crate) struct Eval {
     /// Jacobian's projection needs (the columns held at zero are dropped once solved). `None`
     /// on a record whose basis is streamed (computed again where the projection needs it).
     pub(crate) passive_psi: Option<Vec<Vec<f64>>>,
+    /// The unfiltered sum of the paths at the coefficients (what the filters' derivatives
+    /// need), when the residual's pass over a streamed basis gave it.
+    w: Option<Vec<f64>>,
     sol: NnlsSolution,
 }
 
@@ -145,6 +148,7 @@ impl Eval {
     /// finished fit needs its cost and coefficients only).
     fn release_basis(&mut self) {
         self.passive_psi = None;
+        self.w = None;
     }
 }
 
@@ -423,6 +427,11 @@ impl<'a> OutputProblem<'a> {
         self.piece_rows >= self.y.len()
     }
 
+    /// Whether an output filter has parameters (whose derivatives need the unfiltered sum).
+    fn filters_have_params(&self) -> bool {
+        self.layout.filters.iter().any(|f| !f.params.is_empty())
+    }
+
     /// The pieces of a streamed pass, in order.
     pub(crate) fn pieces(&self) -> Vec<Range<usize>> {
         self.pieces_of(self.piece_rows)
@@ -484,6 +493,20 @@ impl<'a> OutputProblem<'a> {
         what: Columns,
         wanted: Option<&[usize]>,
         keep: bool,
+        visit: impl FnMut(Range<usize>, &[&[f64]]),
+    ) -> (Vec<bool>, Option<Vec<Vec<f64>>>) {
+        self.stream_with_raw(th, what, wanted, keep, None, visit)
+    }
+
+    /// [`OutputProblem::stream`] that also hands `raw(rows, columns)` the wanted columns
+    /// before the filters (in the same order), piece by piece.
+    fn stream_with_raw(
+        &self,
+        th: &[f64],
+        what: Columns,
+        wanted: Option<&[usize]>,
+        keep: bool,
+        mut raw: Option<&mut dyn FnMut(Range<usize>, &[&[f64]])>,
         mut visit: impl FnMut(Range<usize>, &[&[f64]]),
     ) -> (Vec<bool>, Option<Vec<Vec<f64>>>) {
         let m = self.layout.n_cols;
@@ -546,6 +569,10 @@ impl<'a> OutputProblem<'a> {
             }
             bufs[m - 1].clear();
             bufs[m - 1].resize(len, 1.0);
+            if let Some(raw) = raw.as_mut() {
+                let view: Vec<&[f64]> = wanted.iter().map(|&k| bufs[k].as_slice()).collect();
+                raw(rows.clone(), &view);
+            }
             if what != Columns::Raw {
                 let mut targets: Vec<&mut Vec<f64>> = bufs
                     .iter_mut()
@@ -797,10 +824,23 @@ impl<'a> OutputProblem<'a> {
         let mut subtract = |rows: Range<usize>, cols: &[&[f64]]| {
             add_columns(&mut r[rows], cols, &c_used, -1.0);
         };
+        let mut w = None;
         match &held {
             Some(psi) => {
                 let cols: Vec<&[f64]> = used.iter().map(|&i| psi[i].as_slice()).collect();
                 subtract(0..self.y.len(), &cols);
+            }
+            None if with_dynamics && self.filters_have_params() => {
+                // the unfiltered sum of the paths on the way (the Jacobian's filters need it)
+                // the columns of the paths (before the output terms): a prefix of `used`
+                let paths = used.partition_point(|&i| i < self.layout.unfiltered);
+                let c_raw: Vec<f64> = used[..paths].iter().map(|&i| sol.coef[i]).collect();
+                let mut sum = vec![0.0; self.y.len()];
+                let mut add = |rows: Range<usize>, cols: &[&[f64]]| {
+                    add_columns(&mut sum[rows], &cols[..paths], &c_raw, 1.0);
+                };
+                self.stream_with_raw(th, what, Some(&used), false, Some(&mut add), subtract);
+                w = Some(sum);
             }
             None => {
                 self.stream(th, what, Some(&used), false, subtract);
@@ -825,6 +865,7 @@ impl<'a> OutputProblem<'a> {
             r,
             coef: sol.coef.clone(),
             passive_psi,
+            w,
             sol,
         })
     }
@@ -847,28 +888,30 @@ impl<'a> OutputProblem<'a> {
         let n = self.y.len();
         let p = free.len();
         let sol = &ev.sol;
-        let derivatives: Vec<(Vec<f64>, bool)> = self.with_derivative_jobs(th, &ev.coef, |jobs| {
-            let mut by_param: Vec<Option<&JacobianJob<'_>>> = vec![None; self.layout.n_theta];
-            for (q, job) in &jobs {
-                by_param[*q] = Some(job);
-            }
-            free.par_iter()
-                .map(|&q| {
-                    let Some(job) = by_param[q] else {
-                        return (vec![0.0; n], false);
-                    };
-                    let mut c = job();
-                    self.hold_out(&mut c);
-                    let finite = c.iter().all(|v| v.is_finite());
-                    if !finite {
-                        c.iter_mut()
-                            .filter(|v| !v.is_finite())
-                            .for_each(|v| *v = 0.0);
-                    }
-                    (c, finite)
-                })
-                .collect()
-        });
+        let w = ev.w.as_deref();
+        let derivatives: Vec<(Vec<f64>, bool)> =
+            self.with_derivative_jobs(th, &ev.coef, w, |jobs| {
+                let mut by_param: Vec<Option<&JacobianJob<'_>>> = vec![None; self.layout.n_theta];
+                for (q, job) in &jobs {
+                    by_param[*q] = Some(job);
+                }
+                free.par_iter()
+                    .map(|&q| {
+                        let Some(job) = by_param[q] else {
+                            return (vec![0.0; n], false);
+                        };
+                        let mut c = job();
+                        self.hold_out(&mut c);
+                        let finite = c.iter().all(|v| v.is_finite());
+                        if !finite {
+                            c.iter_mut()
+                                .filter(|v| !v.is_finite())
+                                .for_each(|v| *v = 0.0);
+                        }
+                        (c, finite)
+                    })
+                    .collect()
+            });
         let d: Vec<&[f64]> = derivatives.iter().map(|(c, _)| c.as_slice()).collect();
         let held = ev.passive_psi.as_deref();
         let np = sol.passive.len();
@@ -991,7 +1034,7 @@ impl<'a> OutputProblem<'a> {
     /// projection): the filters' through the filters after them, the terms' through all.
     #[cfg(test)]
     pub(crate) fn derivatives(&self, th: &[f64], coef: &[f64]) -> Vec<(usize, Vec<f64>)> {
-        self.with_derivative_jobs(th, coef, |jobs| {
+        self.with_derivative_jobs(th, coef, None, |jobs| {
             jobs.par_iter().map(|(q, f)| (*q, f())).collect()
         })
     }
@@ -1002,19 +1045,27 @@ impl<'a> OutputProblem<'a> {
         &self,
         th: &[f64],
         coef: &[f64],
+        w: Option<&[f64]>,
         run: impl FnOnce(Vec<(usize, JacobianJob<'_>)>) -> R,
     ) -> R {
         let n = self.y.len();
         let prepared = self.prepared(th, true);
-        // the unfiltered sum of the paths, the columns added in order (a pass over the basis
-        // before the filters)
-        let last = self.layout.unfiltered;
-        let used: Vec<usize> = (0..last).filter(|&i| coef[i] != 0.0).collect();
-        let mut w = vec![0.0; n];
-        let c_used: Vec<f64> = used.iter().map(|&i| coef[i]).collect();
-        self.stream(th, Columns::Raw, Some(&used), false, |rows, cols| {
-            add_columns(&mut w[rows], cols, &c_used, 1.0);
-        });
+        // the unfiltered sum of the paths (`w` when given), the columns added in order (a
+        // pass over the basis before the filters); only the filters' derivatives need it
+        let w: Cow<'_, [f64]> = match w {
+            Some(w) => Cow::Borrowed(w),
+            None if !self.filters_have_params() => Cow::Owned(Vec::new()),
+            None => {
+                let last = self.layout.unfiltered;
+                let used: Vec<usize> = (0..last).filter(|&i| coef[i] != 0.0).collect();
+                let mut w = vec![0.0; n];
+                let c_used: Vec<f64> = used.iter().map(|&i| coef[i]).collect();
+                self.stream(th, Columns::Raw, Some(&used), false, |rows, cols| {
+                    add_columns(&mut w[rows], cols, &c_used, 1.0);
+                });
+                Cow::Owned(w)
+            }
+        };
         let mut jobs: Vec<(usize, JacobianJob<'_>)> = Vec::new();
         let prepared = &prepared;
         for (i, f) in self.layout.filters.iter().enumerate() {
