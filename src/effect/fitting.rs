@@ -155,10 +155,10 @@ pub trait TermFit: Send + Sync {
     /// column, overwritten), in a pass that runs the record's rows in order from the first
     /// (`state` starts empty and carries what the term needs from one block to the next);
     /// returns which columns must have c >= 0. Only the columns where `wanted` is set need be
-    /// written (the pass asks for the same ones at every block). The default computes [`TermFit::columns`] at
-    /// the first block and keeps them for the pass (a term of a column or two); a term of many
-    /// columns whose recursion can resume (the plays) carries its state instead, so that a
-    /// long record's columns are never held whole.
+    /// written (the pass asks for the same ones at every block). The default computes
+    /// [`TermFit::columns`] at the first block and keeps them for the pass (a term of a column
+    /// or two); a term of many columns whose recursion can resume (the plays) carries its
+    /// state instead, so that a long record's columns are never held whole.
     fn columns_block(
         &self,
         th: &[f64],
@@ -183,6 +183,26 @@ pub trait TermFit: Send + Sync {
             o.extend_from_slice(&c[rows.clone()]);
         }
         whole.iter().map(|(_, nonneg)| *nonneg).collect()
+    }
+    /// The term's parameters (its own indices) whose derivatives it can give a block of rows
+    /// at a time ([`TermFit::derivatives_block`]): a long record's fit asks for them so (the
+    /// others come whole from [`TermFit::derivative`]). None by default.
+    fn derivatives_in_blocks(&self) -> Vec<usize> {
+        Vec::new()
+    }
+    /// [`TermFit::derivative`] of the parameters `qs` (among
+    /// [`TermFit::derivatives_in_blocks`]) on the rows `rows`, into `out` (one buffer per
+    /// parameter, overwritten), in a pass over the record's rows in order (`state` as in
+    /// [`TermFit::columns_block`]): the same values as the whole columns'.
+    fn derivatives_block(
+        &self,
+        _th: &[f64],
+        _qs: &[usize],
+        _coef: &[f64],
+        _rows: Range<usize>,
+        _state: &mut TermState,
+        _out: &mut [Vec<f64>],
+    ) {
     }
     /// d/d th_q of sum_k coef_k column_k (before the filters) at `th`, over the whole record.
     /// A term with parameters must give it (the default, for terms without parameters, is

@@ -801,27 +801,59 @@ impl<'a> OutputMapTerm<'a> {
         z: &mut [f64],
         x: &mut [Vec<f64>],
     ) -> Vec<f64> {
+        let wanted: Vec<bool> = w[1..].iter().map(|&t| t != 0.0).collect();
+        let cols = self.x_block(rows.clone(), z, x, &wanted);
+        self.z_of(w, rows, &cols)
+    }
+
+    /// The operator's columns x_q on the rows `rows` where `wanted` (from the plays' states
+    /// `z`, updated; `x` the buffers), or all of them where they are kept.
+    fn x_block<'s>(
+        &'s self,
+        rows: Range<usize>,
+        z: &mut [f64],
+        x: &'s mut [Vec<f64>],
+        wanted: &[bool],
+    ) -> Vec<&'s [f64]> {
+        match &self.x.cached {
+            Some(c) => c.iter().map(|c| &c[rows.clone()]).collect(),
+            None => {
+                if wanted.iter().any(|w| *w) {
+                    self.x.columns_on(rows, z, None, x, wanted);
+                }
+                x.iter().map(Vec::as_slice).collect()
+            }
+        }
+    }
+
+    /// The operator's output at weights `w` on the rows `rows` from its columns `x` there.
+    fn z_of(&self, w: &[f64], rows: Range<usize>, x: &[&[f64]]) -> Vec<f64> {
         let mut out = self.z0[rows.clone()].to_vec();
         if w.iter().all(|&t| t == 0.0) {
             return out;
         }
-        for (v, &x) in out.iter_mut().zip(&self.u[rows.clone()]) {
-            *v += w[0] * x;
+        for (v, &u) in out.iter_mut().zip(&self.u[rows]) {
+            *v += w[0] * u;
         }
-        let wanted: Vec<bool> = w[1..].iter().map(|&t| t != 0.0).collect();
-        let cols = match &self.x.cached {
-            Some(c) => c.iter().map(|c| &c[rows.clone()]).collect::<Vec<_>>(),
-            None => {
-                self.x.columns_on(rows, z, None, x, &wanted);
-                x.iter().map(Vec::as_slice).collect()
-            }
-        };
-        for ((col, &t), _) in cols.iter().zip(&w[1..]).zip(&wanted).filter(|(_, w)| **w) {
-            for (v, &x) in out.iter_mut().zip(col.iter()) {
-                *v += t * x;
+        for (col, &t) in x.iter().zip(&w[1..]) {
+            if t != 0.0 {
+                for (v, &x) in out.iter_mut().zip(col.iter()) {
+                    *v += t * x;
+                }
             }
         }
         out
+    }
+
+    /// S'(v) of the map of slopes `s` (0 on a knot).
+    fn slope_of(&self, bounds: &[(f64, f64)], s: &[f64], v: f64) -> f64 {
+        let i = self.knots.partition_point(|&d| d < v);
+        // the slope of the interval that z lies inside (0 on a knot)
+        if bounds[i].0 < v && v < bounds[i].1 {
+            s[i]
+        } else {
+            0.0
+        }
     }
 
     /// The map's columns S_j(z) - S_j(0) of the operator's output `z` where `wanted`, into
@@ -883,18 +915,7 @@ impl<'a> OutputMapTerm<'a> {
         }
         let z = self.z(w);
         let bounds = self.bounds();
-        let at: Vec<f64> = z
-            .iter()
-            .map(|&v| {
-                let i = self.knots.partition_point(|&d| d < v);
-                // the slope of the interval that z lies inside (0 on a knot)
-                if bounds[i].0 < v && v < bounds[i].1 {
-                    s[i]
-                } else {
-                    0.0
-                }
-            })
-            .collect();
+        let at: Vec<f64> = z.iter().map(|&v| self.slope_of(&bounds, s, v)).collect();
         let at = std::sync::Arc::new(at);
         *cache = Some(SlopeAt {
             weights: w.to_vec(),
@@ -1016,6 +1037,45 @@ impl TermFit for OutputMapTerm<'_> {
             self.x_whole(q - nbw - 1)
         };
         slope.iter().zip(x.iter()).map(|(&d, &xq)| d * xq).collect()
+    }
+    /// The operator's weights: S'(z) x_q a block at a time, z and x_q computed there.
+    fn derivatives_in_blocks(&self) -> Vec<usize> {
+        (bw_n_params(self.bw)..self.n_params()).collect()
+    }
+    fn derivatives_block(
+        &self,
+        th: &[f64],
+        qs: &[usize],
+        coef: &[f64],
+        rows: Range<usize>,
+        state: &mut TermState,
+        out: &mut [Vec<f64>],
+    ) {
+        if rows.start == 0 {
+            state.carry = vec![0.0; self.x.thresholds.len()];
+            state.scratch = vec![Vec::new(); self.x_len()];
+        }
+        let nbw = bw_n_params(self.bw);
+        let w = self.weights_of(th);
+        // the operator's columns for z (nonzero weights) and for the derivatives asked
+        let mut wanted: Vec<bool> = w[1..].iter().map(|&t| t != 0.0).collect();
+        for &q in qs.iter().filter(|&&q| q > nbw) {
+            wanted[q - nbw - 1] = true;
+        }
+        let x = self.x_block(rows.clone(), &mut state.carry, &mut state.scratch, &wanted);
+        let z = self.z_of(w, rows.clone(), &x);
+        let bounds = self.bounds();
+        let s = &coef[..self.knots.len() + 1];
+        let slope: Vec<f64> = z.iter().map(|&v| self.slope_of(&bounds, s, v)).collect();
+        for (o, &q) in out.iter_mut().zip(qs) {
+            let xq = if q == nbw {
+                &self.u[rows.clone()]
+            } else {
+                x[q - nbw - 1]
+            };
+            o.clear();
+            o.extend(slope.iter().zip(xq).map(|(&d, &v)| d * v));
+        }
     }
     fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec {
         let m = self.knots.len() + 1;
@@ -1461,6 +1521,25 @@ mod tests {
                 kept.derivative(&th, q, &coef),
                 streamed.derivative(&th, q, &coef),
                 "parameter {q}"
+            );
+        }
+        // the weights' derivatives a block at a time
+        let qs = streamed.derivatives_in_blocks();
+        assert_eq!(qs, (2..th.len()).collect::<Vec<_>>());
+        let mut state = TermState::default();
+        let mut out = vec![Vec::new(); qs.len()];
+        let mut blocks = vec![Vec::new(); qs.len()];
+        for rows in [0..1, 1..2500, 2500..4096, 4096..6000] {
+            streamed.derivatives_block(&th, &qs, &coef, rows, &mut state, &mut out);
+            for (b, c) in blocks.iter_mut().zip(&out) {
+                b.extend_from_slice(c);
+            }
+        }
+        for (b, &q) in blocks.iter().zip(&qs) {
+            assert_eq!(
+                *b,
+                kept.derivative(&th, q, &coef),
+                "parameter {q} in blocks"
             );
         }
     }

@@ -998,11 +998,57 @@ mod tests {
     /// central differences.
     #[test]
     fn the_second_stage_derivatives_match_central_differences() {
+        let rec = record(1, 20_000);
+        let u = rec.inputs[0].values.as_slice();
+        let previous = first_stage(u);
+        for effects in ["hysteresis,creep,dynamics", "prandtl-ishlinskii,dynamics"] {
+            let prob = second_stage(&rec, effects, &previous);
+            let free = prob.free_except(SECOND_STAGE_PARAM);
+            let added = free.iter().filter(|f| !**f).count();
+            // the linear weight, four plays and two ramps
+            assert_eq!(added, 7, "{effects}");
+            let mut th = prob.initial(&prob, 1).remove(0);
+            for (i, t) in th.iter_mut().enumerate() {
+                *t += if free[i] { 0.05 } else { 0.002 } * (1.0 + 0.1 * i as f64);
+            }
+            // a small step: S has kinks, which a wide difference straddles
+            assert_derivatives_match(&prob, &th, effects, 1e-7);
+        }
+    }
+
+    /// The second stage on a long record: its basis and its operator weights' derivatives
+    /// streamed (the derivatives a block at a time, through the filters from their states)
+    /// give the same bits as held whole.
+    #[test]
+    fn a_streamed_second_stage_gives_the_same_bits_as_one_held_whole() {
+        let chunk = crate::numeric::gram::CHUNK_ROWS;
+        let rec = record(1, 5 * chunk / 2);
+        let previous = first_stage(&rec.inputs[0].values);
+        let whole = second_stage(&rec, "hysteresis,creep,dynamics", &previous);
+        let streamed =
+            second_stage(&rec, "hysteresis,creep,dynamics", &previous).with_piece_rows(Some(chunk));
+        assert!(whole.held_whole() && !streamed.held_whole());
+        let free = whole.free_except(SECOND_STAGE_PARAM);
+        let mut th = whole.initial(&whole, 1).remove(0);
+        for (i, t) in th.iter_mut().enumerate() {
+            *t += if free[i] { 0.05 } else { 0.002 } * (1.0 + 0.1 * i as f64);
+        }
+        let a = whole.eval(&th, true).expect("a finite model");
+        let b = streamed.eval(&th, true).expect("a finite model");
+        assert_eq!(a.cost.to_bits(), b.cost.to_bits());
+        assert_eq!(a.coef, b.coef);
+        let all: Vec<usize> = (0..whole.n_theta()).collect();
+        assert_eq!(
+            whole.projected_normal_equations(&th, &a, &all),
+            streamed.projected_normal_equations(&th, &b, &all)
+        );
+    }
+
+    /// A first-stage Prandtl-Ishlinskii operator (four plays, two ramps) and its output on `u`.
+    fn first_stage(u: &[f64]) -> PreviousPath {
         use crate::effect::hysteresis::HysteresisSpec;
         use crate::effect::prandtl_ishlinskii::{DeadZoneSpec, PrandtlIshlinskiiSpec};
         use crate::effect::Operator;
-        let rec = record(1, 20_000);
-        let u = rec.inputs[0].values.as_slice();
         let first = PrandtlIshlinskiiSpec {
             linear_weight: 0.6,
             thresholds: vec![4.0, 9.0, 15.0, 22.0],
@@ -1016,36 +1062,32 @@ mod tests {
         };
         let mut op = first.check().unwrap().operator();
         let z: Vec<f64> = u.iter().map(|&v| op.step(v)).collect();
-        let previous = PreviousPath {
+        PreviousPath {
             output: std::sync::Arc::new(z),
             spec: std::sync::Arc::new(HysteresisSpec::PrandtlIshlinskii(first)),
-        };
-        for effects in ["hysteresis,creep,dynamics", "prandtl-ishlinskii,dynamics"] {
-            let mut cfg = GreyBoxConfig::from_effect_list(effects).unwrap();
-            cfg.options.plays = 39;
-            let mut st = cfg.structure(&rec, 0).unwrap();
-            st.previous = vec![Some(previous.clone())];
-            let prob = OutputProblem::new(
-                "y1",
-                &rec.outputs[0].values,
-                vec![u],
-                rec.input_names(),
-                rec.ts,
-                &st,
-                cfg.options.plays,
-                None,
-            );
-            let free = prob.free_except(SECOND_STAGE_PARAM);
-            let added = free.iter().filter(|f| !**f).count();
-            // the linear weight, four plays and two ramps
-            assert_eq!(added, 7, "{effects}");
-            let mut th = prob.initial(&prob, 1).remove(0);
-            for (i, t) in th.iter_mut().enumerate() {
-                *t += if free[i] { 0.05 } else { 0.002 } * (1.0 + 0.1 * i as f64);
-            }
-            // a small step: S has kinks, which a wide difference straddles
-            assert_derivatives_match(&prob, &th, effects, 1e-7);
         }
+    }
+
+    /// The second stage's problem of output `y1` of `rec` on the first stage `previous`.
+    fn second_stage<'a>(
+        rec: &'a IoRecord,
+        effects: &str,
+        previous: &PreviousPath,
+    ) -> OutputProblem<'a> {
+        let mut cfg = GreyBoxConfig::from_effect_list(effects).unwrap();
+        cfg.options.plays = 39;
+        let mut st = cfg.structure(rec, 0).unwrap();
+        st.previous = vec![Some(previous.clone())];
+        OutputProblem::new(
+            "y1",
+            &rec.outputs[0].values,
+            vec![rec.inputs[0].values.as_slice()],
+            rec.input_names(),
+            rec.ts,
+            &st,
+            cfg.options.plays,
+            None,
+        )
     }
 
     /// `dynamics` on a 2-DoF record whose first output has no mode (static, under the steps

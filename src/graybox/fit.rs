@@ -36,6 +36,9 @@ use rayon::prelude::*;
 use std::borrow::Cow;
 use std::ops::Range;
 
+/// What a streamed pass hands each piece: its rows and the columns on them.
+type PieceVisit<'v> = dyn FnMut(Range<usize>, &[&[f64]]) + 'v;
+
 /// One column of the Jacobian: d yhat / d theta of one parameter, before projection.
 type JacobianJob<'a> = Box<dyn Fn() -> Vec<f64> + Sync + 'a>;
 
@@ -161,6 +164,14 @@ const PIECE_CHUNKS: usize = 4;
 /// size; beyond, it is streamed in pieces of [`PIECE_CHUNKS`] chunks and computed again by
 /// each pass that needs it (the fit's memory then does not grow with samples x columns).
 pub const WHOLE_BASIS_BYTES: usize = 128 << 20;
+
+/// The states of one streamed pass's derivatives computed a block at a time: each term's,
+/// each derivative's filters', and whether each has been finite so far.
+struct BlockedPass {
+    terms: Vec<TermState>,
+    filters: Vec<Vec<FilterState>>,
+    finite: Vec<bool>,
+}
 
 /// What a streamed pass gives for each piece of the record.
 #[derive(Clone, Copy, PartialEq)]
@@ -506,7 +517,7 @@ impl<'a> OutputProblem<'a> {
         what: Columns,
         wanted: Option<&[usize]>,
         keep: bool,
-        mut raw: Option<&mut dyn FnMut(Range<usize>, &[&[f64]])>,
+        mut raw: Option<&mut PieceVisit<'_>>,
         mut visit: impl FnMut(Range<usize>, &[&[f64]]),
     ) -> (Vec<bool>, Option<Vec<Vec<f64>>>) {
         let m = self.layout.n_cols;
@@ -636,21 +647,24 @@ impl<'a> OutputProblem<'a> {
     }
 
     /// The sum over the record's row blocks ([`gram::sum_by_row_blocks`]) of `block(rows,
-    /// psi)`, `psi` the filtered basis columns `cols` (at `th`, with the dynamics) on those
-    /// rows: taken from `held` (those columns whole) when given, else streamed. The same bits
-    /// either way.
+    /// local, psi, extra)`, `psi` the filtered basis columns `cols` (at `th`, with the
+    /// dynamics) on the block's rows `rows` of the record: taken from `held` (those columns
+    /// whole) when given, else streamed, with `extra(piece)` the piece's columns of another
+    /// kind (the derivatives computed a block at a time; `local` the block's rows in them).
+    /// The same bits either way.
     fn sum_over_basis(
         &self,
         th: &[f64],
         held: Option<&[Vec<f64>]>,
         cols: &[usize],
         (r, c): (usize, usize),
-        block: impl Fn(Range<usize>, &[&[f64]]) -> DMatrix<f64> + Sync,
+        mut extra: impl FnMut(Range<usize>) -> Vec<Vec<f64>>,
+        block: impl Fn(Range<usize>, Range<usize>, &[&[f64]], &[Vec<f64>]) -> DMatrix<f64> + Sync,
     ) -> DMatrix<f64> {
         if let Some(held) = held {
             return gram::sum_by_row_blocks(self.y.len(), r, c, |rows| {
                 let psi: Vec<&[f64]> = held.iter().map(|p| &p[rows.clone()]).collect();
-                block(rows, &psi)
+                block(rows.clone(), rows, &psi, &[])
             });
         }
         let mut sum = gram::ChunkSum::new(r, c);
@@ -658,10 +672,11 @@ impl<'a> OutputProblem<'a> {
             with_dynamics: true,
         };
         self.stream(th, what, Some(cols), false, |piece, psi| {
+            let ex = extra(piece.clone());
             sum.add(gram::chunk_sums(piece.len(), r, c, |local| {
                 let at = piece.start + local.start..piece.start + local.end;
                 let p: Vec<&[f64]> = psi.iter().map(|v| &v[local.clone()]).collect();
-                block(at, &p)
+                block(at, local, &p, &ex)
             }));
         });
         sum.total()
@@ -888,15 +903,37 @@ impl<'a> OutputProblem<'a> {
         let n = self.y.len();
         let p = free.len();
         let sol = &ev.sol;
+        let held = ev.passive_psi.as_deref();
+        // on a streamed basis, the terms' parameters whose derivatives come a block at a
+        // time: (position in `free`, term, the term's parameter)
+        let terms: Vec<&PlacedTerm> = self.layout.paths.iter().flat_map(|p| &p.terms).collect();
+        let mut blocked: Vec<(usize, usize, usize)> = Vec::new();
+        if held.is_none() {
+            for (ti, t) in terms.iter().enumerate() {
+                for lq in t.term.derivatives_in_blocks() {
+                    if let Some(pos) = free.iter().position(|&f| f == t.params.start + lq) {
+                        blocked.push((pos, ti, lq));
+                    }
+                }
+            }
+        }
+        let mut slot: Vec<Option<usize>> = vec![None; p];
+        for (k, &(pos, _, _)) in blocked.iter().enumerate() {
+            slot[pos] = Some(k);
+        }
         let w = ev.w.as_deref();
-        let derivatives: Vec<(Vec<f64>, bool)> =
+        let (derivatives, mut finite): (Vec<Vec<f64>>, Vec<bool>) =
             self.with_derivative_jobs(th, &ev.coef, w, |jobs| {
                 let mut by_param: Vec<Option<&JacobianJob<'_>>> = vec![None; self.layout.n_theta];
                 for (q, job) in &jobs {
                     by_param[*q] = Some(job);
                 }
                 free.par_iter()
-                    .map(|&q| {
+                    .enumerate()
+                    .map(|(pos, &q)| {
+                        if slot[pos].is_some() {
+                            return (Vec::new(), true);
+                        }
                         let Some(job) = by_param[q] else {
                             return (vec![0.0; n], false);
                         };
@@ -910,19 +947,90 @@ impl<'a> OutputProblem<'a> {
                         }
                         (c, finite)
                     })
-                    .collect()
+                    .unzip()
             });
-        let d: Vec<&[f64]> = derivatives.iter().map(|(c, _)| c.as_slice()).collect();
-        let held = ev.passive_psi.as_deref();
+        // the blocked derivatives on a piece: the terms', through the filters (each from its
+        // state), held-out rows zero, non-finite values zero (and the parameter marked)
+        let prepared = self.prepared(th, true);
+        let invalid = prepared.iter().any(|p| matches!(p, Prepared::Invalid));
+        let piece = |pass: &mut BlockedPass, rows: Range<usize>| -> Vec<Vec<f64>> {
+            let mut out = vec![Vec::new(); blocked.len()];
+            for (ti, t) in terms.iter().enumerate() {
+                let idx: Vec<usize> = (0..blocked.len()).filter(|&k| blocked[k].1 == ti).collect();
+                if idx.is_empty() {
+                    continue;
+                }
+                let qs: Vec<usize> = idx.iter().map(|&k| blocked[k].2).collect();
+                let mut bufs = vec![Vec::new(); qs.len()];
+                let (th_t, coef_t) = (&th[t.params.clone()], &ev.coef[t.cols.clone()]);
+                let st = &mut pass.terms[ti];
+                t.term
+                    .derivatives_block(th_t, &qs, coef_t, rows.clone(), st, &mut bufs);
+                for (k, b) in idx.into_iter().zip(bufs) {
+                    out[k] = b;
+                }
+            }
+            out.par_iter_mut()
+                .zip(pass.filters.par_iter_mut())
+                .zip(pass.finite.par_iter_mut())
+                .for_each(|((c, states), fin)| {
+                    if invalid {
+                        c.fill(f64::NAN);
+                    } else {
+                        for (p, s) in prepared.iter().zip(states.iter_mut()) {
+                            if let Prepared::Apply(f) = p {
+                                f(&mut [c.as_mut_slice()], std::slice::from_mut(s));
+                            }
+                        }
+                    }
+                    self.hold_out_rows(c, rows.clone());
+                    for v in c.iter_mut().filter(|v| !v.is_finite()) {
+                        *v = 0.0;
+                        *fin = false;
+                    }
+                });
+            out
+        };
+        let new_pass = || BlockedPass {
+            terms: terms.iter().map(|_| TermState::default()).collect(),
+            filters: vec![vec![FilterState::new(); prepared.len()]; blocked.len()],
+            finite: vec![true; blocked.len()],
+        };
+        // D on a block: the whole columns' rows, the blocked ones' from the piece
+        fn d_at<'x>(
+            slot: &[Option<usize>],
+            whole: &'x [Vec<f64>],
+            (rows, local): (Range<usize>, Range<usize>),
+            extra: &'x [Vec<f64>],
+        ) -> Vec<&'x [f64]> {
+            slot.iter()
+                .zip(whole)
+                .map(|(s, d)| match s {
+                    Some(k) => &extra[*k][local.clone()],
+                    None => &d[rows.clone()],
+                })
+                .collect()
+        }
         let np = sol.passive.len();
         // A = S (L L^T)^-1 S P^T D, column by column (zero for a derivative not projected)
         let mut alpha = DMatrix::zeros(np, p);
         if np > 0 {
-            let pd = self.sum_over_basis(th, held, &sol.passive, (np, p), |rows, passive| {
-                let d: Vec<&[f64]> = d.iter().map(|c| &c[rows.clone()]).collect();
-                gram::tr_mul_slices(passive, &d, false)
-            });
-            for (q, (_, finite)) in derivatives.iter().enumerate() {
+            let mut pass = new_pass();
+            let pd = self.sum_over_basis(
+                th,
+                held,
+                &sol.passive,
+                (np, p),
+                |rows| piece(&mut pass, rows),
+                |rows, local, passive, extra| {
+                    let d = d_at(&slot, &derivatives, (rows, local), extra);
+                    gram::tr_mul_slices(passive, &d, false)
+                },
+            );
+            for (k, &(pos, _, _)) in blocked.iter().enumerate() {
+                finite[pos] = pass.finite[k];
+            }
+            for (q, finite) in finite.iter().enumerate() {
                 if !finite {
                     continue;
                 }
@@ -939,30 +1047,38 @@ impl<'a> OutputProblem<'a> {
             }
         }
         let r = ev.r.as_slice();
-        let products = self.sum_over_basis(th, held, &sol.passive, (p, p + 1), |rows, passive| {
-            // [J | r] on the block: J = D - P A, the passive columns subtracted in order
-            let mut cols = d.clone();
-            cols.push(r);
-            let mut jr = gram::block_of(&cols, rows.clone());
-            let len = rows.len();
-            for (k, pk) in passive.iter().enumerate() {
-                for q in 0..p {
-                    let a = alpha[(k, q)];
-                    if a != 0.0 {
-                        let jq = &mut jr.as_mut_slice()[q * len..(q + 1) * len];
-                        for (v, x) in jq.iter_mut().zip(pk.iter()) {
-                            *v -= a * x;
+        let mut pass = new_pass();
+        let products = self.sum_over_basis(
+            th,
+            held,
+            &sol.passive,
+            (p, p + 1),
+            |rows| piece(&mut pass, rows),
+            |rows, local, passive, extra| {
+                // [J | r] on the block: J = D - P A, the passive columns subtracted in order
+                let mut cols = d_at(&slot, &derivatives, (rows.clone(), local), extra);
+                cols.push(&r[rows.clone()]);
+                let len = rows.len();
+                let mut jr = gram::block_of(&cols, 0..len);
+                for (k, pk) in passive.iter().enumerate() {
+                    for q in 0..p {
+                        let a = alpha[(k, q)];
+                        if a != 0.0 {
+                            let jq = &mut jr.as_mut_slice()[q * len..(q + 1) * len];
+                            for (v, x) in jq.iter_mut().zip(pk.iter()) {
+                                *v -= a * x;
+                            }
                         }
                     }
                 }
-            }
-            jr.as_mut_slice()[..p * len]
-                .iter_mut()
-                .filter(|v| !v.is_finite())
-                .for_each(|v| *v = 0.0);
-            let j = jr.columns(0, p).into_owned();
-            gram::tr_mul_block(&j, &jr, false)
-        });
+                jr.as_mut_slice()[..p * len]
+                    .iter_mut()
+                    .filter(|v| !v.is_finite())
+                    .for_each(|v| *v = 0.0);
+                let j = jr.columns(0, p).into_owned();
+                gram::tr_mul_block(&j, &jr, false)
+            },
+        );
         (
             products.columns(0, p).into_owned(),
             products.column(p).into_owned(),
