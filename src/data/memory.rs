@@ -24,11 +24,14 @@ pub const AVAILABLE_VARIABLE: &str = "HYSTBENCH_MEMORY_AVAILABLE";
 
 /// Bytes a command holds per sample beyond the record itself, per input path of an output
 /// fitted at a time (grey-box basis columns grow with the paths), measured on the bench's
-/// 1-input record with margin (`benches/scale.sh`, 200,000 to 2,000,000 samples).
+/// 1-input record with margin (`benches/scale.sh`, 200,000 to 2,000,000 samples); a grey-box
+/// fit holds more per sample on a short record, up to a cap ([`Work::held_cap`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Work {
-    /// `fit`, `improve`: the grey-box fit (basis columns, derivatives, one evaluation's
-    /// filtered basis): about 1.5 kB a sample measured at 2,000,000.
+    /// `fit`, `improve`: the grey-box fit. A long record's basis is streamed in pieces
+    /// (`graybox`: the pieces and the columns kept whole up to 128 MB are the fixed part);
+    /// what grows with the samples is the record, the residual and the derivatives of the
+    /// parameters that are not computed a block at a time.
     GreyBoxFit,
     /// `diagnose`: a fit's memory plus the banks and the refit test's candidate fits (run
     /// one at a time on long records).
@@ -47,10 +50,30 @@ impl Work {
     /// Working bytes per sample and input path (see [`Work`]).
     pub const fn bytes_per_sample(self) -> u64 {
         match self {
-            Work::GreyBoxFit => 1_800,
-            Work::Diagnosis => 2_400,
+            Work::GreyBoxFit => 400,
+            Work::Diagnosis => 600,
             Work::Identification => 400,
             Work::Prediction | Work::Simulation => 250,
+        }
+    }
+
+    /// Working bytes per sample and input path held only up to [`Work::held_cap`]: what a
+    /// grey-box fit holds whole on a record short enough (its basis, the columns it keeps),
+    /// and streams in pieces of a fixed size beyond.
+    pub const fn held_bytes_per_sample(self) -> u64 {
+        match self {
+            Work::GreyBoxFit => 1_600,
+            Work::Diagnosis => 1_800,
+            _ => 0,
+        }
+    }
+
+    /// The most that [`Work::held_bytes_per_sample`] comes to, whatever the record's length.
+    pub const fn held_cap(self) -> u64 {
+        match self {
+            Work::GreyBoxFit => 400_000_000,
+            Work::Diagnosis => 500_000_000,
+            _ => 0,
         }
     }
 
@@ -78,7 +101,12 @@ impl Work {
     /// and `columns` signals in all (the record's own columns, held twice: read and selected).
     pub fn bytes(self, samples: usize, inputs: usize, columns: usize) -> u64 {
         let per_sample = self.bytes_per_sample() * inputs.max(1) as u64 + 16 * columns as u64;
-        per_sample.saturating_mul(samples as u64)
+        let held = (self.held_bytes_per_sample() * inputs.max(1) as u64)
+            .saturating_mul(samples as u64)
+            .min(self.held_cap());
+        per_sample
+            .saturating_mul(samples as u64)
+            .saturating_add(held)
     }
 }
 
@@ -263,7 +291,11 @@ mod tests {
     #[test]
     fn the_estimate_grows_with_samples_and_paths() {
         let one = Work::GreyBoxFit.bytes(1_000_000, 1, 3);
-        assert_eq!(Work::GreyBoxFit.bytes(10_000_000, 1, 3), 10 * one);
+        let fixed = Work::GreyBoxFit.held_cap();
+        assert_eq!(
+            Work::GreyBoxFit.bytes(10_000_000, 1, 3) - fixed,
+            10 * (one - fixed)
+        );
         assert!(Work::GreyBoxFit.bytes(1_000_000, 2, 3) > one);
         assert!(Work::Prediction.bytes(1_000_000, 1, 3) < one);
         assert_eq!(human(3_214_000_000), "3.21 GB");
