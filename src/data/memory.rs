@@ -68,7 +68,8 @@ impl Work {
         }
     }
 
-    /// The most that [`Work::held_bytes_per_sample`] comes to, whatever the record's length.
+    /// The most that [`Work::held_bytes_per_sample`] comes to per input path, whatever the
+    /// record's length.
     pub const fn held_cap(self) -> u64 {
         match self {
             Work::GreyBoxFit => 400_000_000,
@@ -103,7 +104,7 @@ impl Work {
         let per_sample = self.bytes_per_sample() * inputs.max(1) as u64 + 16 * columns as u64;
         let held = (self.held_bytes_per_sample() * inputs.max(1) as u64)
             .saturating_mul(samples as u64)
-            .min(self.held_cap());
+            .min(self.held_cap() * inputs.max(1) as u64);
         per_sample
             .saturating_mul(samples as u64)
             .saturating_add(held)

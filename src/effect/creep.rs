@@ -357,6 +357,7 @@ impl FilterFit for CreepFilter {
         let g = th.to_vec();
         Prepared::Apply(Box::new(
             move |cols: &mut [&mut [f64]], states: &mut [FilterState]| {
+                debug_assert_eq!(cols.len(), states.len(), "a state per signal");
                 for (out, z) in cols.iter_mut().zip(states.iter_mut()) {
                     if z.is_empty() {
                         z.resize(a.len(), 0.0);

@@ -331,6 +331,7 @@ fn prepared(d: &Dynamics, ts: f64) -> Prepared {
             };
             Prepared::Apply(Box::new(
                 move |cols: &mut [&mut [f64]], states: &mut [FilterState]| {
+                    debug_assert_eq!(cols.len(), states.len(), "a state per signal");
                     // four columns side by side: the recursion's latency is shared (each column's
                     // arithmetic is the same as alone)
                     for (group, st) in cols.chunks_mut(4).zip(states.chunks_mut(4)) {

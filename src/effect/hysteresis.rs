@@ -306,9 +306,9 @@ fn bouc_wen_grid() -> Vec<Vec<f64>> {
 /// operator the ramps of a static input map (weights of either sign) and, on a positive path,
 /// one Bouc-Wen column (A >= 0). Column order: plays, ramps, Bouc-Wen.
 ///
-/// The plays and ramps are computed where they are asked for, not kept: a long record's
-/// columns come a block of rows at a time ([`TermFit::columns_block`]), the plays resuming
-/// from their states.
+/// The plays and ramps are kept whole up to [`CACHED_COLUMNS_BYTES`]; beyond, a long record's
+/// columns are computed where asked, a block of rows at a time ([`TermFit::columns_block`]),
+/// the plays resuming from their states.
 struct PiTerm<'a> {
     u: &'a [f64],
     thresholds: Vec<f64>,
@@ -423,7 +423,7 @@ type BwMemo = std::sync::Mutex<Option<(Vec<f64>, std::sync::Arc<Vec<f64>>)>>;
 fn bw_memoized(u: &[f64], range: f64, th: &[f64], memo: &BwMemo) -> std::sync::Arc<Vec<f64>> {
     let mut m = memo.lock().unwrap_or_else(|e| e.into_inner());
     if let Some((at, col)) = m.as_ref() {
-        if at.as_slice() == th {
+        if at.len() == th.len() && at.iter().zip(th).all(|(a, b)| a.to_bits() == b.to_bits()) {
             return col.clone();
         }
     }
@@ -479,6 +479,20 @@ impl<'a> PiTerm<'a> {
         out: &mut [Vec<f64>],
         wanted: &[bool],
     ) {
+        self.columns_on_with(rows, z, bw_whole, out, wanted, true)
+    }
+
+    /// [`PiTerm::columns_on`], the groups of plays in parallel or (`parallel` false: under a
+    /// lock, where a thread must not take other parallel work) one after the other.
+    fn columns_on_with(
+        &self,
+        rows: Range<usize>,
+        z: &mut [f64],
+        bw_whole: Option<&[f64]>,
+        out: &mut [Vec<f64>],
+        wanted: &[bool],
+        parallel: bool,
+    ) {
         let u = &self.u[rows.clone()];
         let sign = self.sign;
         let np = self.thresholds.len();
@@ -494,7 +508,7 @@ impl<'a> PiTerm<'a> {
             .collect();
         // eight plays side by side: their recursions interleave (each play's arithmetic is
         // that of `play_operator` alone)
-        jobs.par_chunks_mut(PLAYS_SIDE_BY_SIDE).for_each(|group| {
+        let run = |group: &mut [(f64, &mut f64, &mut Vec<f64>)]| {
             for (_, _, o) in group.iter_mut() {
                 o.clear();
                 o.reserve(u.len());
@@ -531,7 +545,12 @@ impl<'a> PiTerm<'a> {
                     o.iter_mut().for_each(|v| *v = -*v);
                 }
             }
-        });
+        };
+        if parallel {
+            jobs.par_chunks_mut(PLAYS_SIDE_BY_SIDE).for_each(run);
+        } else {
+            jobs.chunks_mut(PLAYS_SIDE_BY_SIDE).for_each(run);
+        }
         for ((o, &k), _) in rest
             .iter_mut()
             .zip(&self.knots)
@@ -801,8 +820,20 @@ impl<'a> OutputMapTerm<'a> {
         z: &mut [f64],
         x: &mut [Vec<f64>],
     ) -> Vec<f64> {
+        self.z_block_with(w, rows, z, x, true)
+    }
+
+    /// [`OutputMapTerm::z_block`], the plays in parallel or not ([`PiTerm::columns_on_with`]).
+    fn z_block_with(
+        &self,
+        w: &[f64],
+        rows: Range<usize>,
+        z: &mut [f64],
+        x: &mut [Vec<f64>],
+        parallel: bool,
+    ) -> Vec<f64> {
         let wanted: Vec<bool> = w[1..].iter().map(|&t| t != 0.0).collect();
-        let cols = self.x_block(rows.clone(), z, x, &wanted);
+        let cols = self.x_block(rows.clone(), z, x, &wanted, parallel);
         self.z_of(w, rows, &cols)
     }
 
@@ -814,12 +845,13 @@ impl<'a> OutputMapTerm<'a> {
         z: &mut [f64],
         x: &'s mut [Vec<f64>],
         wanted: &[bool],
+        parallel: bool,
     ) -> Vec<&'s [f64]> {
         match &self.x.cached {
             Some(c) => c.iter().map(|c| &c[rows.clone()]).collect(),
             None => {
                 if wanted.iter().any(|w| *w) {
-                    self.x.columns_on(rows, z, None, x, wanted);
+                    self.x.columns_on_with(rows, z, None, x, wanted, parallel);
                 }
                 x.iter().map(Vec::as_slice).collect()
             }
@@ -881,7 +913,8 @@ impl<'a> OutputMapTerm<'a> {
     }
 
     /// The operator's output at weights `w` (increments over the first stage's), computed a
-    /// few chunks of rows at a time (the operator's columns are not held whole).
+    /// block of rows at a time where the operator's columns are not kept, on the calling
+    /// thread alone.
     fn z(&self, w: &[f64]) -> Cow<'_, [f64]> {
         if w.iter().all(|&t| t == 0.0) {
             return Cow::Borrowed(self.z0.as_slice());
@@ -893,7 +926,8 @@ impl<'a> OutputMapTerm<'a> {
         let mut at = 0;
         while at < n {
             let end = (at + Z_ROWS).min(n);
-            z.extend(self.z_block(w, at..end, &mut states, &mut x));
+            // on this thread alone: `slope_at` calls this under its lock
+            z.extend(self.z_block_with(w, at..end, &mut states, &mut x, false));
             at = end;
         }
         Cow::Owned(z)
@@ -1062,7 +1096,8 @@ impl TermFit for OutputMapTerm<'_> {
         for &q in qs.iter().filter(|&&q| q > nbw) {
             wanted[q - nbw - 1] = true;
         }
-        let x = self.x_block(rows.clone(), &mut state.carry, &mut state.scratch, &wanted);
+        let (carry, scratch) = (&mut state.carry, &mut state.scratch);
+        let x = self.x_block(rows.clone(), carry, scratch, &wanted, true);
         let z = self.z_of(w, rows.clone(), &x);
         let bounds = self.bounds();
         let s = &coef[..self.knots.len() + 1];
@@ -1521,6 +1556,21 @@ mod tests {
                 kept.derivative(&th, q, &coef),
                 streamed.derivative(&th, q, &coef),
                 "parameter {q}"
+            );
+        }
+        // the derivatives asked in parallel of a term that computes its columns (the slope's
+        // lock is not held across parallel work: no thread waits on itself)
+        let mut fresh = OutputMapTerm::new(&setup, &prev, 4.0).unwrap();
+        fresh.x.cached = None;
+        let par: Vec<Vec<f64>> = (0..th.len())
+            .into_par_iter()
+            .map(|q| fresh.derivative(&th, q, &coef))
+            .collect();
+        for (q, d) in par.iter().enumerate() {
+            assert_eq!(
+                *d,
+                kept.derivative(&th, q, &coef),
+                "parameter {q} in parallel"
             );
         }
         // the weights' derivatives a block at a time

@@ -7,7 +7,9 @@
 //! Both steps work on normal equations accumulated by row blocks ([`crate::numeric::gram`]):
 //! the basis' Gram matrix for the linear step, Kaufman's `J^T J` for the nonlinear one, whose
 //! projected Jacobian is formed and multiplied a block at a time. Only the passive
-//! set's filtered columns outlive an evaluation.
+//! set's filtered columns outlive an evaluation, and on a long record not even those: its
+//! basis is streamed, computed again a piece at a time by every pass that needs it
+//! ([`OutputProblem::stream`]), with the same bits as held whole.
 //!
 //! What the model is made of comes from the effects ([`crate::effect::fitting`]): each path
 //! has a gain column and the columns of the terms of its effects; the output's filters act on
@@ -138,7 +140,8 @@ pub(crate) struct Eval {
     pub coef: Vec<f64>,
     /// The filtered basis columns of the passive set (`sol.passive`, in that order): what the
     /// Jacobian's projection needs (the columns held at zero are dropped once solved). `None`
-    /// on a record whose basis is streamed (computed again where the projection needs it).
+    /// on a record whose basis is streamed (computed again where the projection needs it) and
+    /// once released.
     pub(crate) passive_psi: Option<Vec<Vec<f64>>>,
     /// The unfiltered sum of the paths at the coefficients (what the filters' derivatives
     /// need), when the residual's pass over a streamed basis gave it.
@@ -157,7 +160,7 @@ impl Eval {
 
 /// Chunks of the row-block sums ([`gram::CHUNK_ROWS`]) in a piece of a streamed pass: the
 /// pieces start on chunk boundaries, so that sums over them are the same bits as over the
-/// whole record, and a piece keeps two threads busy.
+/// whole record, and a piece gives several threads a chunk each.
 const PIECE_CHUNKS: usize = 4;
 
 /// The filtered basis of a record is held whole (computed once per evaluation) up to this
@@ -433,7 +436,6 @@ impl<'a> OutputProblem<'a> {
     }
 
     /// Whether the basis is held whole (one piece).
-    #[cfg(test)]
     pub(crate) fn held_whole(&self) -> bool {
         self.piece_rows >= self.y.len()
     }
@@ -557,7 +559,7 @@ impl<'a> OutputProblem<'a> {
         let single = pieces.len() <= 1;
         // a streamed record's buffers are kept from one pass to the next (their pages are not
         // handed back to the system and faulted in again)
-        let pooled = !single;
+        let pooled = !self.held_whole();
         let mut bufs: Vec<Vec<f64>> = if pooled {
             let mut pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
             (0..m).map(|_| pool.pop().unwrap_or_default()).collect()
@@ -740,7 +742,7 @@ impl<'a> OutputProblem<'a> {
             }
         }
         if let Some(m) = &self.excluded {
-            for (v, &x) in c.iter_mut().zip(&m[rows]) {
+            for (v, &x) in c.iter_mut().zip(m.iter().skip(rows.start)) {
                 if x {
                     *v = 0.0;
                 }
