@@ -1418,6 +1418,25 @@ pub fn reversals(u: &[f64]) -> usize {
 mod tests {
     use super::*;
 
+    /// `count` columns asked of `ask(rows, state, out)` for each of `rows` in order (one pass,
+    /// one state), each column's blocks appended.
+    fn in_blocks(
+        count: usize,
+        rows: &[Range<usize>],
+        mut ask: impl FnMut(Range<usize>, &mut TermState, &mut [Vec<f64>]),
+    ) -> Vec<Vec<f64>> {
+        let mut state = TermState::default();
+        let mut out = vec![Vec::new(); count];
+        let mut blocks = vec![Vec::new(); count];
+        for r in rows {
+            ask(r.clone(), &mut state, &mut out);
+            for (b, c) in blocks.iter_mut().zip(&out) {
+                b.extend_from_slice(c);
+            }
+        }
+        blocks
+    }
+
     /// A Prandtl-Ishlinskii term's columns asked a block of rows at a time (the plays
     /// resuming from their states, nothing cached) are the same bits as over the whole record,
     /// on a positive and a negative path.
@@ -1439,16 +1458,14 @@ mod tests {
                 .map(|(c, _)| c.into_owned())
                 .collect();
             assert_eq!(whole.len(), term.n_columns());
-            let mut state = TermState::default();
-            let mut blocks = vec![Vec::new(); whole.len()];
-            let mut out = vec![Vec::new(); whole.len()];
-            let all = vec![true; out.len()];
-            for rows in [0..1, 1..777, 777..4096, 4096..5000] {
-                term.columns_block(&th, rows, &mut state, &mut out, &all);
-                for (b, c) in blocks.iter_mut().zip(&out) {
-                    b.extend_from_slice(c);
-                }
-            }
+            let all = vec![true; whole.len()];
+            let blocks = in_blocks(
+                whole.len(),
+                &[0..1, 1..777, 777..4096, 4096..5000],
+                |r, s, o| {
+                    term.columns_block(&th, r, s, o, &all);
+                },
+            );
             assert_eq!(blocks, whole, "sign {sign}");
         }
     }
@@ -1539,16 +1556,11 @@ mod tests {
             .into_iter()
             .map(|(c, _)| c.into_owned())
             .collect();
-        let mut state = TermState::default();
-        let mut out = vec![Vec::new(); whole.len()];
-        let mut blocks = vec![Vec::new(); whole.len()];
         let all = vec![true; whole.len()];
-        for rows in [0..1, 1..2500, 2500..4096, 4096..6000] {
-            streamed.columns_block(&th, rows, &mut state, &mut out, &all);
-            for (b, c) in blocks.iter_mut().zip(&out) {
-                b.extend_from_slice(c);
-            }
-        }
+        let rows = [0..1, 1..2500, 2500..4096, 4096..6000];
+        let blocks = in_blocks(whole.len(), &rows, |r, s, o| {
+            streamed.columns_block(&th, r, s, o, &all);
+        });
         assert_eq!(blocks, whole);
         let coef: Vec<f64> = (0..whole.len()).map(|j| 0.1 + 0.05 * j as f64).collect();
         for q in 0..th.len() {
@@ -1576,15 +1588,9 @@ mod tests {
         // the weights' derivatives a block at a time
         let qs = streamed.derivatives_in_blocks();
         assert_eq!(qs, (2..th.len()).collect::<Vec<_>>());
-        let mut state = TermState::default();
-        let mut out = vec![Vec::new(); qs.len()];
-        let mut blocks = vec![Vec::new(); qs.len()];
-        for rows in [0..1, 1..2500, 2500..4096, 4096..6000] {
-            streamed.derivatives_block(&th, &qs, &coef, rows, &mut state, &mut out);
-            for (b, c) in blocks.iter_mut().zip(&out) {
-                b.extend_from_slice(c);
-            }
-        }
+        let blocks = in_blocks(qs.len(), &rows, |r, s, o| {
+            streamed.derivatives_block(&th, &qs, &coef, r, s, o);
+        });
         for (b, &q) in blocks.iter().zip(&qs) {
             assert_eq!(
                 *b,

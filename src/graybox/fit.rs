@@ -752,16 +752,7 @@ impl<'a> OutputProblem<'a> {
 
     /// Zero a column's held-out rows.
     fn hold_out(&self, c: &mut [f64]) {
-        if let Some(r) = &self.held_out {
-            c[r.clone()].fill(0.0);
-        }
-        if let Some(m) = &self.excluded {
-            for (v, &x) in c.iter_mut().zip(m) {
-                if x {
-                    *v = 0.0;
-                }
-            }
-        }
+        self.hold_out_rows(c, 0..c.len());
     }
 
     /// The filters prepared at `th` (without those left out of the static model).
