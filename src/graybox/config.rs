@@ -32,7 +32,8 @@ pub struct FitOptions {
     pub adapt_plays: bool,
     /// After the fit, try its second stage: the fitted Prandtl-Ishlinskii operators' outputs
     /// through Kuhnen's dead-zone superposition (saturating and asymmetric loops), kept when
-    /// it fits better (off with `choose_ridge`).
+    /// it fits better ([`GreyBoxConfig::fit_stages`] also gives the first stage's plant; a
+    /// chosen ridge does not enter the second stage).
     pub output_map: bool,
     /// A record too short for creep time constants over two decades gets one or two (the
     /// most between 5 samples and a third of the record) instead of being refused.

@@ -7,7 +7,7 @@ use super::{FitSummary, FittedGreyBox, GreyBoxConfig, GreyBoxError, OutputFit};
 use crate::data::IoRecord;
 use crate::effect::fitting::{PreviousPath, RecordError, RecordView, SECOND_STAGE_PARAM};
 use crate::effect::{registry, Slot};
-use crate::plant::{PlantSpec, Units};
+use crate::plant::{Plant, PlantSpec, Units};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -49,6 +49,14 @@ pub fn train_samples(n: usize, fraction: f64) -> usize {
     } else {
         ((n as f64 * fraction).round() as usize).clamp(1, n)
     }
+}
+
+/// One output's fit: its spec, the run that fitted it, and the first stage's spec where the
+/// second stage (the output map) replaced it.
+struct StagedOutput {
+    spec: crate::plant::OutputSpec,
+    run: LmResult,
+    first_stage: Option<crate::plant::OutputSpec>,
 }
 
 impl GreyBoxConfig {
@@ -232,6 +240,16 @@ impl GreyBoxConfig {
     /// `options.train_fraction` of the record is fitted; scores are on the rest when it is < 1,
     /// else on the whole record.
     pub fn fit(&self, rec: &IoRecord) -> Result<FittedGreyBox, GreyBoxError> {
+        self.fit_stages(rec).map(|(model, _)| model)
+    }
+
+    /// [`GreyBoxConfig::fit`], and where its second stage ([`super::FitOptions::output_map`])
+    /// replaced some output's first stage, the plant of the first stages (the other outputs
+    /// as fitted): a caller that judges models on held-out samples can choose between the two.
+    pub fn fit_stages(
+        &self,
+        rec: &IoRecord,
+    ) -> Result<(FittedGreyBox, Option<Plant>), GreyBoxError> {
         let first = match self.fit_at_plays(rec) {
             Err(e @ GreyBoxError::TooShort { .. }) if self.options.adapt_plays => e,
             other => return other,
@@ -285,8 +303,8 @@ impl GreyBoxConfig {
             .min()
     }
 
-    /// [`GreyBoxConfig::fit`] with `options.plays` as they are.
-    fn fit_at_plays(&self, rec: &IoRecord) -> Result<FittedGreyBox, GreyBoxError> {
+    /// [`GreyBoxConfig::fit_stages`] with `options.plays` as they are.
+    fn fit_at_plays(&self, rec: &IoRecord) -> Result<(FittedGreyBox, Option<Plant>), GreyBoxError> {
         let start = Instant::now();
         let f = self.options.train_fraction;
         if !(f > 0.0 && f <= 1.0) {
@@ -308,7 +326,15 @@ impl GreyBoxConfig {
         } else {
             outputs.into_par_iter().map(fit).collect::<Result<_, _>>()?
         };
-        let (outputs, runs): (Vec<_>, Vec<_>) = fitted.into_iter().unzip();
+        // the first stage's plant where the second stage replaced it on some output
+        let first_outputs: Option<Vec<crate::plant::OutputSpec>> =
+            fitted.iter().any(|f| f.first_stage.is_some()).then(|| {
+                fitted
+                    .iter()
+                    .map(|f| f.first_stage.clone().unwrap_or_else(|| f.spec.clone()))
+                    .collect()
+            });
+        let (outputs, runs): (Vec<_>, Vec<_>) = fitted.into_iter().map(|f| (f.spec, f.run)).unzip();
         let spec = PlantSpec {
             name: "greybox".into(),
             description: format!(
@@ -321,6 +347,16 @@ impl GreyBoxConfig {
             inputs: input_names,
             outputs,
             ode: None,
+        };
+        let first_stage = match first_outputs {
+            Some(outputs) => {
+                let first = PlantSpec {
+                    outputs,
+                    ..spec.clone()
+                };
+                Some(first.check(&rec.path)?)
+            }
+            None => None,
         };
         let plant = spec.check(&rec.path)?;
         let mut model = FittedGreyBox {
@@ -343,8 +379,9 @@ impl GreyBoxConfig {
         };
         model.score(rec, n_train, &runs)?;
         model.fit.seconds = start.elapsed().as_secs_f64();
-        Ok(model)
+        Ok((model, first_stage))
     }
+
     /// Fit output `o` of the training record; with a sensor (saturation), the samples at its
     /// limits are left out of the fit where the model is beyond the limit (there the
     /// measurement only bounds the model's value: the censored samples of a Tobit model), in
@@ -355,7 +392,7 @@ impl GreyBoxConfig {
         o: usize,
         u: &[&[f64]],
         names: &[String],
-    ) -> Result<(crate::plant::OutputSpec, LmResult), GreyBoxError> {
+    ) -> Result<StagedOutput, GreyBoxError> {
         let y = &train.outputs[o].values;
         let Some(sensor) = self
             .chosen()
@@ -375,7 +412,7 @@ impl GreyBoxConfig {
         for _ in 0..SENSOR_ROUNDS {
             // a censored sample where the model stays inside the limit is a misfit: it
             // enters the next fit with its measured value (at the limit)
-            let Some(model) = simulate_output(&fitted.0, names, u, train.ts) else {
+            let Some(model) = simulate_output(&fitted.spec, names, u, train.ts) else {
                 break;
             };
             let mask: Vec<bool> = censored
@@ -385,7 +422,11 @@ impl GreyBoxConfig {
                 .collect();
             fitted = self.fit_output_values(train, o, Some(&mask), u, names)?;
         }
-        fitted.0.effects.extend(sensor.spec(&censoring));
+        let limits = sensor.spec(&censoring);
+        fitted.spec.effects.extend(limits.clone());
+        if let Some(first) = &mut fitted.first_stage {
+            first.effects.extend(limits);
+        }
         Ok(fitted)
     }
 
@@ -399,7 +440,7 @@ impl GreyBoxConfig {
         excluded: Option<&Vec<bool>>,
         u: &[&[f64]],
         names: &[String],
-    ) -> Result<(crate::plant::OutputSpec, LmResult), GreyBoxError> {
+    ) -> Result<StagedOutput, GreyBoxError> {
         let out = &train.outputs[o];
         let mut st = self.structure(train, o)?;
         let t0 = Instant::now();
@@ -489,14 +530,22 @@ impl GreyBoxConfig {
         let spec = prob.output_spec(&res.theta, &res.eval.coef);
         // its basis (the play operators' outputs) is not needed by the second stage
         drop(prob);
-        if self.options.output_map && !self.options.choose_ridge {
-            if let Some(better) =
+        if self.options.output_map {
+            if let Some((spec2, res2)) =
                 self.output_map_stage(&st, &res, &spec, u, names, train.ts, &problem)
             {
-                return Ok(better);
+                return Ok(StagedOutput {
+                    spec: spec2,
+                    run: res2,
+                    first_stage: Some(spec),
+                });
             }
         }
-        Ok((spec, res))
+        Ok(StagedOutput {
+            spec,
+            run: res,
+            first_stage: None,
+        })
     }
 
     /// The second stage of a two-stage fit: each path's Prandtl-Ishlinskii operator (the

@@ -72,34 +72,121 @@ pub const BASE_EFFECTS: [&str; 6] = [
 /// 150,000 samples this fits the six lists on a third of the fitting part each.
 pub const BASE_SELECTION_SAMPLES: usize = 20_000;
 
-/// A long record's candidate with these effects, fitted on the first `n_fit` samples with its
-/// ridge chosen per output (cross-validation at the fitted nonlinear parameters), and its free
-/// run over the training record.
-fn long_candidate(train: &IoRecord, list: &'static str, n_fit: usize) -> Option<Candidate> {
-    let mut cfg = list_config(train, list, n_fit)?;
+/// A long record's candidates with these effects, fitted on the first `n_fit` samples with its
+/// ridge chosen per output (cross-validation at the fitted nonlinear parameters), each with
+/// its free run over the training record: the fit, and with the default operator, where its
+/// second stage (Kuhnen's output map: saturating and asymmetric loops) replaced the first on
+/// some output, the first stage before it. The held-out samples choose between the two: the
+/// second stage is kept on a clearly lower cost over the fitting part, which a loop shape
+/// that the map bends to the fitting part's levels also gives.
+fn long_candidates(
+    train: &IoRecord,
+    list: &'static str,
+    n_fit: usize,
+    second_stage: bool,
+) -> Vec<Candidate> {
+    let Some(mut cfg) = list_config(train, list, n_fit) else {
+        return Vec::new();
+    };
     cfg.options.choose_ridge = !bouc_wen_only(list);
-    let model = cfg.fit(train).ok()?;
-    let sim = model.simulate(train).ok()?;
-    Some(Candidate { list, model, sim })
+    cfg.options.output_map = second_stage && !bouc_wen_only(list);
+    let Ok((model, first_stage)) = cfg.fit_stages(train) else {
+        return Vec::new();
+    };
+    let candidate = |model: FittedGreyBox, output_map: bool| {
+        let sim = model.simulate(train).ok()?;
+        Some(Candidate {
+            list,
+            output_map,
+            model,
+            sim,
+        })
+    };
+    let first = first_stage.map(|plant| FittedGreyBox {
+        plant,
+        ..model.clone()
+    });
+    let output_map = first.is_some();
+    first
+        .and_then(|m| candidate(m, false))
+        .into_iter()
+        .chain(candidate(model, output_map))
+        .collect()
 }
 
-/// The candidates that `picks` name and that were fitted on fewer than `n_fit` samples,
-/// refitted on the first `n_fit` (in parallel; a refit that fails keeps the selection's fit).
-fn refit_picked(train: &IoRecord, cands: &mut [Candidate], picks: &[usize], n_fit: usize) {
-    let mut todo: Vec<usize> = picks
-        .iter()
-        .copied()
-        .filter(|&i| cands[i].model.fit.train_samples < n_fit)
-        .collect();
-    todo.sort_unstable();
-    todo.dedup();
-    let refits: Vec<(usize, Option<Candidate>)> = todo
+impl Candidate {
+    /// Its model's effects, and `+ output map` for a second stage.
+    fn effects(&self) -> String {
+        let list = self.model.config.effect_list();
+        if self.output_map {
+            format!("{list} + output map")
+        } else {
+            list
+        }
+    }
+
+    /// Its list, and `+ output map` for a second stage.
+    fn name(&self) -> String {
+        if self.output_map {
+            format!("{} + output map", self.list)
+        } else {
+            self.list.to_string()
+        }
+    }
+}
+
+/// The lists that `picks` name and that were fitted on fewer than `n_fit` samples, refitted
+/// on the first `n_fit` (each list once, in parallel). The refit's stages take the places of
+/// the selection's (a stage the selection's fit did not have is appended, one the refit does
+/// not have becomes its first stage), and each output that picked the list takes the stage
+/// that `judge` picks among the refit's: whether the second stage pays is decided again on
+/// the whole fitting part. A refit that fails keeps the selection's fit.
+fn refit_picked(
+    train: &IoRecord,
+    cands: &mut Vec<Candidate>,
+    picks: &mut [usize],
+    n_fit: usize,
+    judge: impl Fn(usize, &[Candidate]) -> usize,
+) {
+    // in the candidates' order (a list's stages are neighbours)
+    let mut lists: Vec<&'static str> = Vec::new();
+    for (i, c) in cands.iter().enumerate() {
+        if picks.contains(&i) && c.model.fit.train_samples < n_fit && lists.last() != Some(&c.list)
+        {
+            lists.push(c.list);
+        }
+    }
+    let refits: Vec<(&'static str, Vec<Candidate>)> = lists
         .into_par_iter()
-        .map(|i| (i, long_candidate(train, cands[i].list, n_fit)))
+        .map(|l| (l, long_candidates(train, l, n_fit, true)))
         .collect();
-    for (i, c) in refits {
-        if let Some(c) = c {
-            cands[i] = c;
+    for (list, refit) in refits {
+        let Some(first) = refit.first() else {
+            continue;
+        };
+        let at: Vec<usize> = (0..cands.len())
+            .filter(|&i| cands[i].list == list)
+            .collect();
+        for &i in at.iter().skip(refit.len()) {
+            cands[i] = first.clone();
+        }
+        let mut places = Vec::new();
+        for (k, c) in refit.iter().enumerate() {
+            match at.get(k) {
+                Some(&i) => {
+                    cands[i] = c.clone();
+                    places.push(i);
+                }
+                None => {
+                    cands.push(c.clone());
+                    places.push(cands.len() - 1);
+                }
+            }
+        }
+        for (o, p) in picks.iter_mut().enumerate() {
+            if cands[*p].list == list {
+                *p = places[judge(o, &refit)];
+            }
         }
     }
 }
@@ -229,8 +316,11 @@ pub const BASE_PLAYS: usize = 19;
 /// A fitted candidate base: its effects, the model fitted without the held-out samples, and
 /// the predictions those samples are judged on (its free run over the training record; on a
 /// short record every sample's out-of-block free run).
+#[derive(Clone)]
 struct Candidate {
     list: &'static str,
+    /// Whether this is the list's second stage (Kuhnen's output map on its operator).
+    output_map: bool,
     model: FittedGreyBox,
     sim: Vec<Vec<f64>>,
 }
@@ -238,6 +328,12 @@ struct Candidate {
 /// The cross-validated free-run MSE (in units of the output's variance, about 1 - R^2) below
 /// which a short record's base describes the record: a network then does not replace it.
 pub const SHORT_BASE_DESCRIBES: f64 = 0.1;
+
+/// The ridges with which a short record's lists with the default operator are also
+/// cross-validated with their second stage (Kuhnen's output map, [`long_candidates`]), after
+/// the list's first stages: no ridge (the stage bends the loop only where the fold's fitting
+/// part clearly asks it: `graybox`'s `OUTPUT_MAP_GAIN`).
+pub const SHORT_MAP_RIDGES: [f64; 1] = [0.0];
 
 /// Blocks of a short record's cross-validation ([`GreyBoxConfig::cross_validate`]): the last
 /// is the probe's tail ([`PROBE_TAIL`]).
@@ -262,9 +358,11 @@ fn list_config(train: &IoRecord, list: &str, n_fit: usize) -> Option<GreyBoxConf
 }
 
 /// The candidate bases of `train`: every list of [`BASE_EFFECTS`] it supports ([`LINEAR_BASE`]
-/// when none does); on a short record each with every ridge of [`RIDGES`], cross-validated
-/// over [`SHORT_FOLDS`] blocks of the whole record; else fitted on the first `n_fit` samples
-/// with its ridge chosen per output, judged on the validation part.
+/// when none does); on a short record each with every ridge of [`RIDGES`] (and those with the
+/// default operator with their second stage, [`SHORT_MAP_RIDGES`]), cross-validated over
+/// [`SHORT_FOLDS`] blocks of the whole record; else fitted on the first `n_fit` samples with
+/// its ridge chosen per output, judged on the validation part ([`long_candidates`]: the second
+/// stage beside its first where the fit is not refitted on a longer part).
 ///
 /// References: S. Arlot, A. Celisse, Statistics Surveys 4:40-79, 2010 (cross-validation for
 /// model selection); L. Breiman, J. Friedman, R. Olshen, C. Stone, *Classification and
@@ -273,39 +371,57 @@ fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
     if !short {
         // on at most BASE_SELECTION_SAMPLES of the fitting part; the lists chosen are refitted
         // on all of it ([`refit_picked`])
-        let fit =
-            |list: &'static str| long_candidate(train, list, n_fit.min(BASE_SELECTION_SAMPLES));
-        let fitted: Vec<Option<Candidate>> = BASE_EFFECTS.par_iter().map(|l| fit(l)).collect();
+        let fit = |list: &'static str| {
+            long_candidates(
+                train,
+                list,
+                n_fit.min(BASE_SELECTION_SAMPLES),
+                n_fit <= BASE_SELECTION_SAMPLES,
+            )
+        };
+        let fitted: Vec<Vec<Candidate>> = BASE_EFFECTS.par_iter().map(|l| fit(l)).collect();
         let c: Vec<Candidate> = fitted.into_iter().flatten().collect();
         if c.is_empty() {
             return fit(LINEAR_BASE).into_iter().collect();
         }
         return c;
     }
-    let cross_validated = |(list, ridge): (&'static str, f64)| {
+    let cross_validated = |(list, ridge, output_map): (&'static str, f64, bool)| {
         let mut cfg = list_config(train, list, train.len())?;
         cfg.options.ridge = ridge;
+        cfg.options.output_map = output_map;
         let cv = cfg.cross_validate(train, SHORT_FOLDS).ok()?;
         let model = cv.fits.into_iter().last()?;
         Some(Candidate {
             list,
+            output_map,
             model,
             sim: cv.predictions,
         })
     };
     // simplest first: each list with its ridges from the strongest; independent fits, in
     // parallel, kept in that order
-    let grid: Vec<(&'static str, f64)> = BASE_EFFECTS
+    let grid: Vec<(&'static str, f64, bool)> = BASE_EFFECTS
         .iter()
         .flat_map(|&l| {
             let ridges: &[f64] = if bouc_wen_only(l) { &[0.0] } else { &RIDGES };
-            ridges.iter().map(move |&r| (l, r))
+            let maps: &[f64] = if bouc_wen_only(l) {
+                &[]
+            } else {
+                &SHORT_MAP_RIDGES
+            };
+            ridges
+                .iter()
+                .map(move |&r| (l, r, false))
+                .chain(maps.iter().map(move |&r| (l, r, true)))
         })
         .collect();
     let fitted: Vec<Option<Candidate>> = grid.into_par_iter().map(cross_validated).collect();
     let c: Vec<Candidate> = fitted.into_iter().flatten().collect();
     if c.is_empty() {
-        return cross_validated((LINEAR_BASE, 0.0)).into_iter().collect();
+        return cross_validated((LINEAR_BASE, 0.0, false))
+            .into_iter()
+            .collect();
     }
     c
 }
@@ -348,8 +464,8 @@ fn richer_wins(rich: &Option<Vec<f64>>, simple: &Option<Vec<f64>>) -> bool {
     }
 }
 
-/// With `HYSTBENCH_TRACE` set: each candidate's held-out MSE (all blocks, the tail, per
-/// block) and the choice, on standard error.
+/// With `HYSTBENCH_TRACE` set: each candidate's held-out MSE (all of it, the tail, per batch
+/// of the comparison) and the choice, on standard error.
 fn trace_choice(
     output: &str,
     o: usize,
@@ -360,23 +476,16 @@ fn trace_choice(
     network: &Option<Vec<f64>>,
 ) {
     for (c, e) in cands.iter().zip(errs) {
-        let n = c.sim[o].len();
-        let per: Vec<String> = crate::graybox::blocks(n, SHORT_FOLDS)
-            .into_iter()
-            .map(|b| {
-                let part: Vec<f64> = e.as_ref().map_or(Vec::new(), |e| {
-                    if e.len() == n {
-                        e[b].to_vec()
-                    } else {
-                        Vec::new()
-                    }
-                });
-                format!("{:.2e}", mse(&Some(part)).unwrap_or(f64::NAN))
-            })
-            .collect();
+        // the batches the comparison tests ([`crate::metrics::COMPARISON_BATCHES`])
+        let per: Vec<String> = e.as_ref().map_or(Vec::new(), |e| {
+            crate::graybox::blocks(e.len(), crate::metrics::COMPARISON_BATCHES)
+                .into_iter()
+                .map(|b| format!("{:.2e}", mse(&Some(e[b].to_vec())).unwrap_or(f64::NAN)))
+                .collect()
+        });
         eprintln!(
-            "base {output}: {:<28} ridge {:.0e} plays {:>2}: held-out MSE {:.3e}, tail {:.3e}, blocks {}",
-            c.list,
+            "base {output}: {:<28} ridge {:.0e} plays {:>2}: held-out MSE {:.3e}, tail {:.3e}, batches {}",
+            c.name(),
             c.model.config.options.ridge,
             c.model.fit.plays,
             mse(e).unwrap_or(f64::NAN),
@@ -386,7 +495,7 @@ fn trace_choice(
     }
     eprintln!(
         "base {output}: picked {} ridge {:.0e}; network tail MSE {:.3e}",
-        cands[pick].list,
+        cands[pick].name(),
         cands[pick].model.config.options.ridge,
         mse(&network.as_ref().and_then(|p| tail(p))).unwrap_or(f64::NAN)
     );
@@ -488,7 +597,7 @@ impl NarxConfig {
         // per output, the simplest candidate that the best one does not clearly beat, judged
         // on every out-of-block sample of a short record, else on the validation part
         let judged = if short { 0..n } else { n_fit..n };
-        let (picks, judged_mse): (Vec<usize>, Vec<Option<f64>>) = m
+        let (mut picks, judged_mse): (Vec<usize>, Vec<Option<f64>>) = m
             .outputs
             .iter()
             .enumerate()
@@ -504,7 +613,22 @@ impl NarxConfig {
             })
             .unzip();
         if !short {
-            refit_picked(train, &mut cands, &picks, n_fit);
+            let judge = |o: usize, stages: &[Candidate]| {
+                let (y, std) = (&train.outputs[o].values, m.outputs[o].scaling.std);
+                let (pick, errs) = pick(stages, o, y, judged.clone(), std);
+                if std::env::var_os("HYSTBENCH_TRACE").is_some() {
+                    for (c, e) in stages.iter().zip(&errs) {
+                        eprintln!(
+                            "base {}: refitted {:<28} held-out MSE {:.3e}",
+                            m.outputs[o].name,
+                            c.name(),
+                            mse(e).unwrap_or(f64::NAN)
+                        );
+                    }
+                }
+                pick
+            };
+            refit_picked(train, &mut cands, &mut picks, n_fit, judge);
         }
         let mut base_errors = Vec::new();
         let mut choices: Vec<BaseChoice> = Vec::new();
@@ -525,7 +649,7 @@ impl NarxConfig {
             let network_wins = richer_wins(&ne, &be) && !(short && describes);
             choices.push(BaseChoice {
                 name: om.name.clone(),
-                effects: cands[pick].model.config.effect_list(),
+                effects: cands[pick].effects(),
                 network_mse: mse(&ne),
                 base_mse: mse(&be),
                 residual_mse: None,
@@ -545,11 +669,9 @@ impl NarxConfig {
         let chosen: Vec<usize> = (0..choices.len())
             .filter(|&o| choices[o].model == BaseUse::Base)
             .collect();
-        let effects = cands
-            .iter()
-            .map(|c| c.model.config.effect_list())
-            .collect::<Vec<_>>()
-            .join("; ");
+        let mut tried: Vec<String> = cands.iter().map(Candidate::effects).collect();
+        tried.dedup();
+        let effects = tried.join("; ");
         if chosen.is_empty() {
             m.base = Some(GreyBoxBase {
                 effects,
@@ -583,6 +705,7 @@ impl NarxConfig {
                     let full = list_config(train, lists[i], n).and_then(|mut c| {
                         c.options.plays = g.fit.plays;
                         c.options.ridge = g.config.options.ridge;
+                        c.options.output_map = g.config.options.output_map;
                         c.options.adapt_plays = false;
                         c.fit(train).ok()
                     });
