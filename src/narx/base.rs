@@ -102,6 +102,7 @@ fn long_candidates(
             sim,
         })
     };
+    // (its fit summary is the whole fit's: the base reads its plays, samples and ridge)
     let first = first_stage.map(|plant| FittedGreyBox {
         plant,
         ..model.clone()
@@ -117,20 +118,19 @@ fn long_candidates(
 impl Candidate {
     /// Its model's effects, and `+ output map` for a second stage.
     fn effects(&self) -> String {
-        let list = self.model.config.effect_list();
-        if self.output_map {
-            format!("{list} + output map")
-        } else {
-            list
-        }
+        self.staged(self.model.config.effect_list())
     }
 
     /// Its list, and `+ output map` for a second stage.
     fn name(&self) -> String {
+        self.staged(self.list.to_string())
+    }
+
+    fn staged(&self, list: String) -> String {
         if self.output_map {
-            format!("{} + output map", self.list)
+            format!("{list} + output map")
         } else {
-            self.list.to_string()
+            list
         }
     }
 }
