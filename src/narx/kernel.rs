@@ -345,16 +345,7 @@ fn sse_avx2(mlp: &Mlp, x: &[f64], t: &[f64], block: usize, w: &mut BatchWorkspac
 }
 
 /// Whether the AVX2 build of the kernels runs here (same results, only faster).
-pub fn uses_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
+pub use crate::numeric::simd::uses_avx2;
 
 /// Gradient of `scale * sum 0.5 (out - t)^2` over the rows `rows` of the row-major regressor
 /// matrix `x` (targets `t`), written into `grad` (the layout of [`Mlp::params`]). The network

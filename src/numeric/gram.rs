@@ -111,6 +111,7 @@ pub fn block_of(cols: &[&[f64]], rows: Range<usize>) -> DMatrix<f64> {
 
 /// Dot product with eight partial sums in a fixed order (the compiler vectorises it; plain
 /// IEEE arithmetic, no fused multiply-add: the same bits on every machine).
+#[inline(always)]
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().min(b.len());
     let (a, b) = (&a[..n], &b[..n]);
@@ -132,6 +133,7 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
 
 /// [`dot`] of `a` with each of four columns of `a`'s length, side by side (the same bits as four
 /// calls of [`dot`]).
+#[inline(always)]
 fn dot4(a: &[f64], b: [&[f64]; 4]) -> [f64; 4] {
     let n = a.len();
     let b = b.map(|c| &c[..n]);
@@ -188,22 +190,27 @@ pub fn tr_mul_slices(a: &[&[f64]], b: &[&[f64]], symmetric: bool) -> DMatrix<f64
         a.iter().chain(b).all(|x| x.len() == rows),
         "blocks of different rows"
     );
-    for i in 0..k {
-        let ai = a[i];
-        let mut j = if symmetric { i.min(c) } else { 0 };
-        // four columns of `b` against one of `a`: the column of `a` is loaded once for four
-        // products (each product's arithmetic is that of `dot`)
-        while j + 4 <= c {
-            let d = dot4(ai, [b[j], b[j + 1], b[j + 2], b[j + 3]]);
-            for (l, v) in d.into_iter().enumerate() {
-                out[(i, j + l)] = v;
+    crate::numeric::simd::wide(
+        #[inline(always)]
+        || {
+            for i in 0..k {
+                let ai = a[i];
+                let mut j = if symmetric { i.min(c) } else { 0 };
+                // four columns of `b` against one of `a`: the column of `a` is loaded once for four
+                // products (each product's arithmetic is that of `dot`)
+                while j + 4 <= c {
+                    let d = dot4(ai, [b[j], b[j + 1], b[j + 2], b[j + 3]]);
+                    for (l, v) in d.into_iter().enumerate() {
+                        out[(i, j + l)] = v;
+                    }
+                    j += 4;
+                }
+                for j in j..c {
+                    out[(i, j)] = dot(ai, b[j]);
+                }
             }
-            j += 4;
-        }
-        for j in j..c {
-            out[(i, j)] = dot(ai, b[j]);
-        }
-    }
+        },
+    );
     out
 }
 
