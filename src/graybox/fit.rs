@@ -299,8 +299,8 @@ fn add_columns(out: &mut [f64], cols: &[&[f64]], coef: &[f64], sign: f64) {
         });
 }
 
-/// Columns filtered together (the resonator's recursion runs this many side by side).
-const FILTER_GROUP: usize = 4;
+/// Columns filtered together (the resonator's recursion runs up to this many side by side).
+const FILTER_GROUP: usize = 8;
 
 impl<'a> OutputProblem<'a> {
     /// Set up the problem of one output; `plays` play operators per Prandtl-Ishlinskii path;
@@ -963,19 +963,32 @@ impl<'a> OutputProblem<'a> {
                     out[k] = b;
                 }
             }
-            out.par_iter_mut()
-                .zip(pass.filters.par_iter_mut())
-                .zip(pass.finite.par_iter_mut())
-                .for_each(|((c, states), fin)| {
+            // through the filters in groups side by side (each column from its own states)
+            out.par_chunks_mut(FILTER_GROUP)
+                .zip(pass.filters.par_chunks_mut(FILTER_GROUP))
+                .for_each(|(group, states)| {
                     if invalid {
-                        c.fill(f64::NAN);
-                    } else {
-                        for (p, s) in prepared.iter().zip(states.iter_mut()) {
-                            if let Prepared::Apply(f) = p {
-                                f(&mut [c.as_mut_slice()], std::slice::from_mut(s));
+                        group.iter_mut().for_each(|c| c.fill(f64::NAN));
+                        return;
+                    }
+                    let mut slices: Vec<&mut [f64]> =
+                        group.iter_mut().map(|c| c.as_mut_slice()).collect();
+                    for (i, p) in prepared.iter().enumerate() {
+                        if let Prepared::Apply(f) = p {
+                            let mut st: Vec<FilterState> = states
+                                .iter_mut()
+                                .map(|s| std::mem::take(&mut s[i]))
+                                .collect();
+                            f(&mut slices, &mut st);
+                            for (s, x) in states.iter_mut().zip(st) {
+                                s[i] = x;
                             }
                         }
                     }
+                });
+            out.par_iter_mut()
+                .zip(pass.finite.par_iter_mut())
+                .for_each(|(c, fin)| {
                     self.hold_out_rows(c, rows.clone());
                     for v in c.iter_mut().filter(|v| !v.is_finite()) {
                         *v = 0.0;
