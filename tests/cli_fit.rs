@@ -474,3 +474,48 @@ fn a_record_too_large_for_memory_is_refused_before_the_work() {
     let o = fit(fit_needs + text, &[]);
     assert!(o.status.success() && out.exists(), "{}", stderr(&o));
 }
+
+/// The fit gives the same model file, bit for bit but the time, whatever instructions the hot
+/// loops use (`hystbench::numeric::simd`: the baseline build, AVX2, and the widest the processor
+/// has: AVX-512 here when it has it).
+#[test]
+fn the_fit_is_the_same_bits_whatever_the_instructions() {
+    use hystbench::numeric::simd::SIMD_VARIABLE;
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("r.csv");
+    let root = common::root();
+    let sim = run(&[
+        "simulate",
+        "--plant",
+        s(&root.join("plants/hidden_creep_piezo.json")),
+        "--scenario",
+        s(&root.join("scenarios/hidden_effect_1khz.json")),
+        "--out",
+        s(&data),
+    ]);
+    assert!(sim.status.success(), "{}", stderr(&sim));
+    let fit = |level: Option<&str>| -> String {
+        let out = dir
+            .path()
+            .join(format!("m-{}.json", level.unwrap_or("widest")));
+        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_hystbench"));
+        cmd.args(["fit", "--data", s(&data), "--effects"])
+            .args(["hysteresis,creep,dynamics", "--out", s(&out), "--quiet"])
+            .env_remove(SIMD_VARIABLE);
+        if let Some(level) = level {
+            cmd.env(SIMD_VARIABLE, level);
+        }
+        let o = cmd.output().expect("run hystbench");
+        assert!(o.status.success(), "{}", stderr(&o));
+        let text = std::fs::read_to_string(&out).unwrap();
+        // every line but the fit's time
+        text.lines()
+            .filter(|l| !l.contains("seconds"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    let widest = fit(None);
+    assert!(widest.contains("creep"), "a model with creep");
+    assert_eq!(fit(Some("baseline")), widest, "the baseline build differs");
+    assert_eq!(fit(Some("avx2")), widest, "the AVX2 build differs");
+}

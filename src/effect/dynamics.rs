@@ -324,7 +324,7 @@ fn eight_lanes(
     states: &mut [FilterState],
 ) -> usize {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx512f") {
+    if crate::numeric::simd::uses_avx512() {
         let mut done = 0;
         for (group, st) in cols.chunks_exact_mut(8).zip(states.chunks_exact_mut(8)) {
             let n = group[0].len();

@@ -230,7 +230,7 @@ fn tiles_4x4(a: &[&[f64]], b: &[&[f64]], symmetric: bool, out: &mut DMatrix<f64>
     #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
     let mut from: Vec<usize> = (0..k).map(start).collect();
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx512f") {
+    if crate::numeric::simd::uses_avx512() {
         for i0 in (0..k - k % 4).step_by(4) {
             let j0 = start(i0);
             let j_end = j0 + (c - j0) / 4 * 4;
@@ -400,8 +400,7 @@ mod tests {
                 }
             }
         }
-        #[cfg(target_arch = "x86_64")]
-        if !std::arch::is_x86_feature_detected!("avx512f") {
+        if !crate::numeric::simd::uses_avx512() {
             eprintln!("note: no AVX-512 here, the tiles' path was not taken");
         }
     }

@@ -10,6 +10,58 @@
 //! order on every lane (no fused multiply-add: Rust never contracts `a * b + c`), so the
 //! results are the same bits on every machine.
 
+/// The environment variable that caps the instructions used: `baseline` (the crate as built),
+/// `avx2`, or unset (the widest the processor has). The results are the same bits at every
+/// level; the switch is there to check that on one machine, and to time the levels.
+pub const SIMD_VARIABLE: &str = "HYSTBENCH_SIMD";
+
+/// The instruction sets the hot loops may use, narrowest first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Level {
+    /// The baseline x86-64 (or another architecture): two doubles per register.
+    Baseline,
+    /// AVX2: four doubles per register.
+    Avx2,
+    /// AVX-512F: eight doubles per register, 32 registers.
+    Avx512,
+}
+
+/// The level in use: the processor's widest, capped by [`SIMD_VARIABLE`] (read once).
+pub fn level() -> Level {
+    static LEVEL: std::sync::OnceLock<Level> = std::sync::OnceLock::new();
+    *LEVEL.get_or_init(|| {
+        let cap = match std::env::var(SIMD_VARIABLE).as_deref() {
+            Ok("baseline") => Level::Baseline,
+            Ok("avx2") => Level::Avx2,
+            _ => Level::Avx512,
+        };
+        processor_level().min(cap)
+    })
+}
+
+fn processor_level() -> Level {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            return Level::Avx512;
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            return Level::Avx2;
+        }
+    }
+    Level::Baseline
+}
+
+/// Whether the AVX2 builds run here: [`wide`] and the network's kernels (`narx::kernel`).
+pub fn uses_avx2() -> bool {
+    level() >= Level::Avx2
+}
+
+/// Whether the AVX-512 kernels run here (the cross products' tiles, the resonator's lanes).
+pub fn uses_avx512() -> bool {
+    level() >= Level::Avx512
+}
+
 /// Runs `f`, compiled for AVX2 where the processor has it. Mark the closure
 /// `#[inline(always)]` (and the functions it calls in the hot loop): only code inlined into
 /// the AVX2 build is compiled for it.
@@ -18,24 +70,11 @@ pub fn wide<R>(f: impl FnOnce() -> R) -> R {
     #[cfg(target_arch = "x86_64")]
     {
         if uses_avx2() {
-            // SAFETY: the processor supports AVX2 (checked just above).
+            // SAFETY: the processor supports AVX2 (`processor_level`).
             return unsafe { avx2(f) };
         }
     }
     f()
-}
-
-/// Whether the AVX2 builds run here (same results, only faster): [`wide`] and the network's
-/// kernels (`narx::kernel`).
-pub fn uses_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
 }
 
 #[cfg(target_arch = "x86_64")]
