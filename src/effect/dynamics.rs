@@ -742,14 +742,16 @@ mod tests {
         let same: Vec<Vec<f64>> = [0, 1, 3, 4, 5].map(|j| alone[j].clone()).to_vec();
         assert_eq!(together(same.clone()), each_alone(&same));
         // in blocks, each resuming from the state the last one left: the same bits
-        let mut blocks = same.clone();
-        let mut states = vec![Vec::new(); blocks.len()];
-        for rows in [0..1, 1..300, 300..301, 301..1000] {
-            let mut slices: Vec<&mut [f64]> =
-                blocks.iter_mut().map(|c| &mut c[rows.clone()]).collect();
-            f(&mut slices, &mut states);
-        }
-        assert_eq!(blocks, each_alone(&same));
+        let in_blocks = |mut blocks: Vec<Vec<f64>>| -> Vec<Vec<f64>> {
+            let mut states = vec![Vec::new(); blocks.len()];
+            for rows in [0..1, 1..300, 300..301, 301..1000] {
+                let mut slices: Vec<&mut [f64]> =
+                    blocks.iter_mut().map(|c| &mut c[rows.clone()]).collect();
+                f(&mut slices, &mut states);
+            }
+            blocks
+        };
+        assert_eq!(in_blocks(same.clone()), each_alone(&same));
         // thirteen columns of one length (eight in the lanes of AVX-512 registers where the
         // processor has it, then four, then one), whole and in blocks: the same bits
         let many: Vec<Vec<f64>> = (0..13)
@@ -766,14 +768,7 @@ mod tests {
                 .collect()
         };
         assert_eq!(bits(&together(many.clone())), bits(&want));
-        let mut blocks = many.clone();
-        let mut states = vec![Vec::new(); blocks.len()];
-        for rows in [0..1, 1..300, 300..301, 301..1000] {
-            let mut slices: Vec<&mut [f64]> =
-                blocks.iter_mut().map(|c| &mut c[rows.clone()]).collect();
-            f(&mut slices, &mut states);
-        }
-        assert_eq!(bits(&blocks), bits(&want));
+        assert_eq!(bits(&in_blocks(many)), bits(&want));
     }
 
     #[test]
