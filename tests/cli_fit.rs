@@ -518,4 +518,10 @@ fn the_fit_is_the_same_bits_whatever_the_instructions() {
     assert!(widest.contains("creep"), "a model with creep");
     assert_eq!(fit(Some("baseline")), widest, "the baseline build differs");
     assert_eq!(fit(Some("avx2")), widest, "the AVX2 build differs");
+    if !hystbench::numeric::simd::uses_avx512() {
+        eprintln!(
+            "note: no AVX-512 here, the widest level is {:?}",
+            hystbench::numeric::simd::level()
+        );
+    }
 }

@@ -5,13 +5,13 @@
 //! independent sums side by side; compiled for AVX2 (four doubles per register) they run
 //! faster (the cross products of 56 columns on one core of the development machine: 13.4
 //! against 9.3 GFlop/s). The network's kernels (`narx::kernel`) have AVX2 builds of their own.
-//! [`wide`] runs a closure compiled for AVX2 when the processor reports it (checked once, then
-//! cached by the standard library), else as built. Both versions do the same IEEE operations in the same
+//! [`wide`] runs a closure compiled for AVX2 when [`level`] allows it (the processor's widest
+//! level, found once, capped by [`SIMD_VARIABLE`]), else as built. Both versions do the same IEEE operations in the same
 //! order on every lane (no fused multiply-add: Rust never contracts `a * b + c`), so the
 //! results are the same bits on every machine.
 
 /// The environment variable that caps the instructions used: `baseline` (the crate as built),
-/// `avx2`, or unset (the widest the processor has). The results are the same bits at every
+/// `avx2`, `avx512` or unset (the widest the processor has; another value is warned about). The results are the same bits at every
 /// level; the switch is there to check that on one machine, and to time the levels.
 pub const SIMD_VARIABLE: &str = "HYSTBENCH_SIMD";
 
@@ -33,7 +33,14 @@ pub fn level() -> Level {
         let cap = match std::env::var(SIMD_VARIABLE).as_deref() {
             Ok("baseline") => Level::Baseline,
             Ok("avx2") => Level::Avx2,
-            _ => Level::Avx512,
+            Ok("avx512") | Ok("") | Err(_) => Level::Avx512,
+            Ok(other) => {
+                eprintln!(
+                    "warning: {SIMD_VARIABLE}={other} is not one of baseline, avx2, avx512: \
+                     the widest level the processor has is used"
+                );
+                Level::Avx512
+            }
         };
         processor_level().min(cap)
     })
@@ -42,7 +49,10 @@ pub fn level() -> Level {
 fn processor_level() -> Level {
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("avx512f") {
+        // AVX-512 implies AVX2 on every processor made, but a virtual machine may mask one
+        if std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx2")
+        {
             return Level::Avx512;
         }
         if std::arch::is_x86_feature_detected!("avx2") {
