@@ -124,11 +124,18 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
             acc[i] += x[i] * y[i];
         }
     }
-    let mut s = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
+    let mut s = sum8(&acc);
     for (x, y) in ra.iter().zip(rb) {
         s += x * y;
     }
     s
+}
+
+/// The eight partial sums of [`dot`] added in its fixed tree (every product of this module
+/// ends so: the same bits whichever path took it).
+#[inline(always)]
+fn sum8(acc: &[f64; 8]) -> f64 {
+    ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]))
 }
 
 /// [`dot`] of `a` with each of four columns of `a`'s length, side by side (the same bits as four
@@ -150,8 +157,7 @@ fn dot4(a: &[f64], b: [&[f64]; 4]) -> [f64; 4] {
     }
     let mut out = [0.0; 4];
     for ((o, acc), c) in out.iter_mut().zip(&acc).zip(&b) {
-        let mut s =
-            ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
+        let mut s = sum8(acc);
         for (x, y) in a[full..].iter().zip(&c[full..]) {
             s += x * y;
         }
@@ -290,7 +296,7 @@ unsafe fn products_4x4(a: [&[f64]; 4], b: [&[f64]; 4]) -> [[f64; 4]; 4] {
             let mut p = [0.0f64; 8];
             // SAFETY: `p` holds eight doubles
             unsafe { _mm512_storeu_pd(p.as_mut_ptr(), acc[u][v]) };
-            let mut s = ((p[0] + p[4]) + (p[1] + p[5])) + ((p[2] + p[6]) + (p[3] + p[7]));
+            let mut s = sum8(&p);
             for (x, y) in a[u][full..].iter().zip(&b[v][full..]) {
                 s += x * y;
             }

@@ -6,9 +6,9 @@
 //! faster (the cross products of 56 columns on one core of the development machine: 13.4
 //! against 9.3 GFlop/s). The network's kernels (`narx::kernel`) have AVX2 builds of their own.
 //! [`wide`] runs a closure compiled for AVX2 when [`level`] allows it (the processor's widest
-//! level, found once, capped by [`SIMD_VARIABLE`]), else as built. Both versions do the same IEEE operations in the same
-//! order on every lane (no fused multiply-add: Rust never contracts `a * b + c`), so the
-//! results are the same bits on every machine.
+//! level, found once, capped by [`SIMD_VARIABLE`]), else as built. Every level does the same
+//! IEEE operations in the same order on every lane (no fused multiply-add: Rust never
+//! contracts `a * b + c`), so the results are the same bits on every machine.
 
 /// The environment variable that caps the instructions used: `baseline` (the crate as built),
 /// `avx2`, `avx512` or unset (the widest the processor has; another value is warned about). The results are the same bits at every
