@@ -1395,23 +1395,29 @@ pub fn levels(u: &[f64]) -> Vec<f64> {
 
 /// Direction reversals of a signal (moves below 1e-9 of its range ignored).
 pub fn reversals(u: &[f64]) -> usize {
+    reversal_samples(u).len()
+}
+
+/// The samples at which a signal is first seen moving the other way, in order (moves below
+/// 1e-9 of its range ignored): [`reversals`] of them.
+pub fn reversal_samples(u: &[f64]) -> Vec<usize> {
     let ptp = crate::metrics::ptp(u);
     let tol = 1e-9 * ptp;
     let mut dir = 0.0;
-    let mut count = 0;
+    let mut at = Vec::new();
     let mut anchor = u.first().copied().unwrap_or(0.0);
-    for &v in u {
+    for (k, &v) in u.iter().enumerate() {
         let d = v - anchor;
         if d.abs() > tol {
             let s = d.signum();
             if dir != 0.0 && s != dir {
-                count += 1;
+                at.push(k);
             }
             dir = s;
             anchor = v;
         }
     }
-    count
+    at
 }
 
 #[cfg(test)]

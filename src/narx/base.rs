@@ -72,6 +72,28 @@ pub const BASE_EFFECTS: [&str; 6] = [
 /// 150,000 samples this fits the six lists on a third of the fitting part each.
 pub const BASE_SELECTION_SAMPLES: usize = 20_000;
 
+/// The direction reversals of each input that the selection part of a long record holds at
+/// least (when the fitting part has twice as many): four loops.
+pub const SELECTION_REVERSALS: usize = 8;
+
+/// The samples of a long record's fitting part (`n_fit`) that its lists are fitted on to
+/// choose among them: the first [`BASE_SELECTION_SAMPLES`], or more, up to the whole fitting
+/// part, until every input has shown half of the fitting part's direction reversals (two at
+/// least: a loop) or [`SELECTION_REVERSALS`], the fewer (a staircase of long holds shows its loops over the
+/// whole record, not in its first samples).
+pub fn selection_samples(train: &IoRecord, n_fit: usize) -> usize {
+    let n_fit = n_fit.min(train.len());
+    train
+        .inputs
+        .iter()
+        .map(|s| {
+            let at = crate::effect::hysteresis::reversal_samples(&s.values[..n_fit]);
+            let wanted = at.len().div_ceil(2).clamp(2, SELECTION_REVERSALS);
+            at.get(wanted - 1).map_or(0, |&k| k + 1)
+        })
+        .fold(n_fit.min(BASE_SELECTION_SAMPLES), usize::max)
+}
+
 /// A long record's candidates with these effects, fitted on the first `n_fit` samples with its
 /// ridge chosen per output (cross-validation at the fitted nonlinear parameters), each with
 /// its free run over the training record: the fit, and with the default operator, where its
@@ -230,6 +252,11 @@ pub struct BaseChoice {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub residual_mse: Option<f64>,
     pub model: BaseUse,
+    /// On a base-and-network output, the grey-box alone's band (calibrated on its held-out
+    /// residuals): the band where the residual network leaves its range and the grey-box alone
+    /// predicts.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base_band: Option<Band>,
 }
 
 /// The grey-box base of a fitted model and how each output uses it.
@@ -369,16 +396,10 @@ fn list_config(train: &IoRecord, list: &str, n_fit: usize) -> Option<GreyBoxConf
 /// Regression Trees*, Wadsworth, 1984, section 3.4.3 (the one-standard-error rule).
 fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
     if !short {
-        // on at most BASE_SELECTION_SAMPLES of the fitting part; the lists chosen are refitted
+        // on the selection part of the fitting part; the lists chosen are refitted
         // on all of it ([`refit_picked`])
-        let fit = |list: &'static str| {
-            long_candidates(
-                train,
-                list,
-                n_fit.min(BASE_SELECTION_SAMPLES),
-                n_fit <= BASE_SELECTION_SAMPLES,
-            )
-        };
+        let selection = selection_samples(train, n_fit);
+        let fit = |list: &'static str| long_candidates(train, list, selection, true);
         let fitted: Vec<Vec<Candidate>> = BASE_EFFECTS.par_iter().map(|l| fit(l)).collect();
         let c: Vec<Candidate> = fitted.into_iter().flatten().collect();
         if c.is_empty() {
@@ -658,6 +679,7 @@ impl NarxConfig {
                 } else {
                     BaseUse::Base
                 },
+                base_band: None,
             });
             base_errors.push(be);
         }
@@ -669,10 +691,15 @@ impl NarxConfig {
         let chosen: Vec<usize> = (0..choices.len())
             .filter(|&o| choices[o].model == BaseUse::Base)
             .collect();
+        // on a long record, the outputs whose network beat the base alone: a network on the
+        // base's residual meets the network alone there (below)
+        let contested: Vec<usize> = (0..choices.len())
+            .filter(|&o| !short && choices[o].model == BaseUse::Network && base_errors[o].is_some())
+            .collect();
         let mut tried: Vec<String> = cands.iter().map(Candidate::effects).collect();
         tried.dedup();
         let effects = tried.join("; ");
-        if chosen.is_empty() {
+        if chosen.is_empty() && contested.is_empty() {
             m.base = Some(GreyBoxBase {
                 effects,
                 fitted_samples: n_fit,
@@ -716,10 +743,21 @@ impl NarxConfig {
             }
             n
         } else {
+            let network_errors: Vec<Option<Vec<f64>>> = (0..choices.len())
+                .map(|o| {
+                    let std = m.outputs[o].scaling.std;
+                    let y = &train.outputs[o].values;
+                    networks[o]
+                        .as_ref()
+                        .and_then(|p| errors(y, p, n_fit..n, std))
+                })
+                .collect();
             let residual = ResidualFit {
                 sim: &sim,
                 chosen: &chosen,
+                contested: &contested,
                 base_errors: &base_errors,
+                network_errors: &network_errors,
                 n_fit,
             };
             self.fit_residual_networks(train, residual, &mut choices, &mut m);
@@ -730,19 +768,25 @@ impl NarxConfig {
         for (o, out) in plant.outputs.iter_mut().enumerate() {
             *out = models[picks[o]].plant.spec.outputs[o].clone();
         }
+        // (contested outputs whose residual network lost leave the base unused)
+        let used = choices.iter().any(|c| c.model != BaseUse::Network);
         m.base = Some(GreyBoxBase {
             effects,
             fitted_samples,
-            plant: Some(plant),
+            plant: used.then_some(plant),
             outputs: choices,
         });
         Ok(m)
     }
 
-    /// On a record with a validation part: a network on the grey-box residual of each chosen
-    /// output, with the configuration `m` ended up with (features, sampling) and no further
-    /// selection; it replaces the output's network when its validation errors are clearly
-    /// lower than the grey-box's alone.
+    /// On a record with a validation part: a network on the grey-box residual of each output
+    /// that chose the grey-box, or whose network beat it (contested), with the configuration
+    /// `m` ended up with (features, sampling) and no further selection. On a chosen output it
+    /// replaces the output's network when its validation errors are clearly lower than the
+    /// grey-box's alone; on a contested one it is kept unless the network alone is clearly
+    /// better than it: the two fit the validation part alike, and the grey-box under the
+    /// residual extrapolates as the physics does where a network alone extrapolates badly
+    /// (rates or levels the training record did not reach).
     fn fit_residual_networks(
         &self,
         train: &IoRecord,
@@ -751,9 +795,9 @@ impl NarxConfig {
         m: &mut FittedNarx,
     ) {
         let n = train.len();
+        let outputs: Vec<usize> = r.chosen.iter().chain(r.contested).copied().collect();
         let mut resid = train.clone();
-        resid.outputs = r
-            .chosen
+        resid.outputs = outputs
             .iter()
             .map(|&o| {
                 let mut s = train.outputs[o].clone();
@@ -773,25 +817,86 @@ impl NarxConfig {
             return;
         };
         let runs = free_runs(&net, &resid);
-        for (k, &o) in r.chosen.iter().enumerate() {
+        for (k, &o) in outputs.iter().enumerate() {
             let std = m.outputs[o].scaling.std;
             let re = runs[k]
                 .as_ref()
                 .and_then(|p| errors(&resid.outputs[k].values, p, r.n_fit..n, std));
             choices[o].residual_mse = mse(&re);
-            if richer_wins(&re, &r.base_errors[o]) {
+            let keep = if r.contested.contains(&o) {
+                re.is_some() && !richer_wins(&r.network_errors[o], &re)
+            } else {
+                richer_wins(&re, &r.base_errors[o])
+            };
+            if keep {
                 choices[o].model = BaseUse::BaseAndNetwork;
                 m.outputs[o] = net.outputs[k].clone();
+                let held: Vec<f64> = (r.n_fit..n).map(|t| resid.outputs[k].values[t]).collect();
+                choices[o].base_band = Band::calibrate(&held, &vec![0.0; held.len()], BAND_LEVEL);
             }
         }
     }
 }
 
 /// What the residual networks are fitted against: the grey-box run over the training record,
-/// the outputs that chose it, its held-out errors, and where the held-out part starts.
+/// the outputs that chose it and those whose network beat it, the held-out errors of both,
+/// and where the held-out part starts.
 struct ResidualFit<'a> {
     sim: &'a [Vec<f64>],
     chosen: &'a [usize],
+    contested: &'a [usize],
     base_errors: &'a [Option<Vec<f64>>],
+    network_errors: &'a [Option<Vec<f64>>],
     n_fit: usize,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::data::Signal;
+
+    fn staircase(levels: &[f64], hold: usize) -> IoRecord {
+        let u: Vec<f64> = levels
+            .iter()
+            .flat_map(|&l| std::iter::repeat_n(l, hold))
+            .collect();
+        let n = u.len();
+        IoRecord {
+            path: "r.csv".into(),
+            ts: 0.001,
+            t0: 0.0,
+            time_name: "t".into(),
+            inputs: vec![Signal {
+                name: "u".into(),
+                values: u,
+            }],
+            outputs: vec![Signal {
+                name: "y".into(),
+                values: vec![0.0; n],
+            }],
+        }
+    }
+
+    #[test]
+    fn the_selection_part_holds_the_loops_of_a_staircase() {
+        // up, down, up, down...: reversals at the start of each level from the third
+        let levels = [0.0, 5.0, 2.0, 8.0, 1.0, 9.0, 3.0, 7.0, 4.0, 6.0];
+        // short holds: the first samples hold the loops
+        let rec = staircase(&levels, 1_000);
+        assert_eq!(selection_samples(&rec, 8_000), 8_000);
+        // long holds: 20,000 samples hold no reversal; the part runs past the second (at the
+        // fourth level's first sample)
+        let rec = staircase(&levels, 12_000);
+        assert_eq!(selection_samples(&rec, 60_000), 3 * 12_000 + 1);
+        // ten reversals in the fitting part: half of them
+        let rec = staircase(&[levels, levels].concat(), 12_000);
+        let at = crate::effect::hysteresis::reversal_samples(&rec.inputs[0].values[..200_000]);
+        assert_eq!(at.len(), 15);
+        assert_eq!(selection_samples(&rec, 200_000), at[7] + 1);
+        // never past the fitting part; an input that never reverses asks for nothing more
+        assert_eq!(selection_samples(&rec, 15_000), 15_000);
+        assert_eq!(selection_samples(&rec, 40_000), 3 * 12_000 + 1);
+        let flat = staircase(&[1.0, 2.0, 3.0], 30_000);
+        assert_eq!(selection_samples(&flat, 80_000), BASE_SELECTION_SAMPLES);
+    }
 }

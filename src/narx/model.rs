@@ -355,11 +355,14 @@ impl FittedNarx {
                 super::base::BaseUse::BaseAndNetwork if p.diverged_at.is_some() => {
                     // the residual network left its range (a record whose start the base,
                     // run from rest, does not know): it is left out like a diverged member,
-                    // and the grey-box alone remains, without a band
+                    // and the grey-box alone remains, with its own band
                     p.values = g[o].clone();
                     p.diverged_at = None;
                     p.diverged_members = (0..=self.outputs[o].ensemble.len()).collect();
-                    p.half_width = None;
+                    p.half_width = match (mode, &base.outputs[o].base_band) {
+                        (Mode::FreeRun, Some(b)) => Some(vec![b.half_width(0.0); g[o].len()]),
+                        _ => None,
+                    };
                 }
                 super::base::BaseUse::BaseAndNetwork => {
                     for (v, gv) in p.values.iter_mut().zip(&g[o]) {
@@ -599,6 +602,12 @@ impl FittedNarx {
                         names_str(&self.config.inputs),
                         names_str(&self.config.outputs)
                     ));
+                }
+            }
+            for c in &b.outputs {
+                if let Some(band) = &c.base_band {
+                    band.check()
+                        .map_err(|e| format!("output `{}`: the grey-box alone's {e}", c.name))?;
                 }
             }
         }
