@@ -221,6 +221,16 @@ fn a_network_that_beats_the_base_meets_the_base_under_a_residual_network() {
     // grey-box alone predicts, with its own band
     let band = choice.base_band.clone().expect("the grey-box alone's band");
     let with = m.predict(&test, Mode::FreeRun).unwrap();
+    // the network alone stays as the second opinion: the band widens where the two part, and
+    // the model file keeps it
+    assert!(choice.network_alone.is_some(), "{choice:?}");
+    let h = with[0].half_width.as_ref().expect("a band");
+    assert!(h.iter().any(|&x| x > 1.5 * h[0]), "a band of one width");
+    let back = FittedNarx::from_json(std::path::Path::new("m.json"), &m.to_json()).unwrap();
+    assert_eq!(
+        back.predict(&test, Mode::FreeRun).unwrap()[0].half_width.as_ref(),
+        Some(h)
+    );
     let mut narrow = m.clone();
     narrow.outputs[0].train_min = 1e6;
     narrow.outputs[0].train_max = 1e6;

@@ -37,7 +37,7 @@
 use super::band::{Band, BAND_LEVEL};
 use super::config::{NarxConfig, Protocol};
 use super::fit::PROBE_TAIL;
-use super::model::{FittedNarx, Mode};
+use super::model::{FittedNarx, Mode, OutputModel};
 use super::NarxError;
 use crate::data::IoRecord;
 use crate::graybox::{FittedGreyBox, GreyBoxConfig, CV_FOLDS, RIDGES};
@@ -257,6 +257,11 @@ pub struct BaseChoice {
     /// predicts.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base_band: Option<Band>,
+    /// On a base-and-network output, the output's network trained on the measured output:
+    /// its free run is the second opinion whose disagreement with the prediction widens the
+    /// band (as the network does for an output on the grey-box alone).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub network_alone: Option<OutputModel>,
 }
 
 /// The grey-box base of a fitted model and how each output uses it.
@@ -680,6 +685,7 @@ impl NarxConfig {
                     BaseUse::Base
                 },
                 base_band: None,
+                network_alone: None,
             });
             base_errors.push(be);
         }
@@ -758,6 +764,7 @@ impl NarxConfig {
                 contested: &contested,
                 base_errors: &base_errors,
                 network_errors: &network_errors,
+                networks: &networks,
                 n_fit,
             };
             self.fit_residual_networks(train, residual, &mut choices, &mut m);
@@ -830,9 +837,22 @@ impl NarxConfig {
             };
             if keep {
                 choices[o].model = BaseUse::BaseAndNetwork;
-                m.outputs[o] = net.outputs[k].clone();
+                let alone = std::mem::replace(&mut m.outputs[o], net.outputs[k].clone());
                 let held: Vec<f64> = (r.n_fit..n).map(|t| resid.outputs[k].values[t]).collect();
                 choices[o].base_band = Band::calibrate(&held, &vec![0.0; held.len()], BAND_LEVEL);
+                // the band normalised by the disagreement with the network alone, when its
+                // free run over the training record did not diverge
+                if let (Some(a), Some(p)) = (&r.networks[o], &runs[k]) {
+                    let range = r.n_fit..n;
+                    let pred = |t: usize| r.sim[o][t] + p[t];
+                    let errs: Vec<f64> = range.clone().map(|t| held[t - r.n_fit] - p[t]).collect();
+                    let spread: Vec<f64> = range.map(|t| (pred(t) - a[t]).abs()).collect();
+                    if let Some(b) = Band::calibrate(&errs, &spread, BAND_LEVEL) {
+                        m.outputs[o].band = Some(b);
+                        m.outputs[o].band_members.clear();
+                        choices[o].network_alone = Some(alone);
+                    }
+                }
             }
         }
     }
@@ -847,6 +867,8 @@ struct ResidualFit<'a> {
     contested: &'a [usize],
     base_errors: &'a [Option<Vec<f64>>],
     network_errors: &'a [Option<Vec<f64>>],
+    /// The networks' free runs over the training record (physical units).
+    networks: &'a [Option<Vec<f64>>],
     n_fit: usize,
 }
 

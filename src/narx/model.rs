@@ -349,6 +349,7 @@ impl FittedNarx {
             }
         }
         let mut preds = self.predict_sampled(&resid, mode)?;
+        let alone = self.networks_alone(base, rec, mode)?;
         for (o, p) in preds.iter_mut().enumerate() {
             match base.uses(o) {
                 super::base::BaseUse::Network => {}
@@ -367,6 +368,16 @@ impl FittedNarx {
                 super::base::BaseUse::BaseAndNetwork => {
                     for (v, gv) in p.values.iter_mut().zip(&g[o]) {
                         *v += gv;
+                    }
+                    // the network alone's free run is the second opinion that widens the band
+                    if let (Some(a), Some(b)) = (&alone[o], &self.outputs[o].band) {
+                        p.half_width = Some(
+                            p.values
+                                .iter()
+                                .zip(a)
+                                .map(|(v, a)| b.half_width((v - a).abs()))
+                                .collect(),
+                        );
                     }
                 }
                 super::base::BaseUse::Base => {
@@ -394,6 +405,40 @@ impl FittedNarx {
             }
         }
         Ok(preds)
+    }
+
+    /// The free runs of the networks alone that base-and-network outputs keep as second
+    /// opinions ([`super::base::BaseChoice::network_alone`]) over `rec`, per output (`None`:
+    /// none kept, not a free run, or it diverged).
+    fn networks_alone(
+        &self,
+        base: &super::base::GreyBoxBase,
+        rec: &IoRecord,
+        mode: Mode,
+    ) -> Result<Vec<Option<Vec<f64>>>, NarxError> {
+        let kept = |o: usize| {
+            base.outputs
+                .get(o)
+                .filter(|_| base.uses(o) == super::base::BaseUse::BaseAndNetwork)
+                .and_then(|c| c.network_alone.as_ref())
+        };
+        let n = self.outputs.len();
+        if mode != Mode::FreeRun || (0..n).all(|o| kept(o).is_none()) {
+            return Ok(vec![None; n]);
+        }
+        let mut m = self.clone();
+        m.base = None;
+        for (o, out) in m.outputs.iter_mut().enumerate() {
+            if let Some(a) = kept(o) {
+                *out = a.clone();
+            }
+        }
+        let runs = m.predict_sampled(rec, mode)?;
+        Ok(runs
+            .into_iter()
+            .enumerate()
+            .map(|(o, p)| (kept(o).is_some() && p.diverged_at.is_none()).then_some(p.values))
+            .collect())
     }
 
     /// [`FittedNarx::predict`] of the networks alone, at the model's sampling.
@@ -611,58 +656,69 @@ impl FittedNarx {
                 }
             }
         }
-        let width = self.config.lags.width(self.config.n_signals());
         for (o, name) in self.outputs.iter().zip(&self.config.outputs) {
-            if o.regressor.lags != self.config.lags
-                || o.regressor.du_gain.len() != self.config.n_signals()
-                || !(o.regressor.dy_gain.is_finite()
-                    && o.regressor.du_gain.iter().all(|g| g.is_finite()))
-            {
-                return Err(format!(
-                    "output `{}`: regressor does not match the configuration",
-                    o.name
-                ));
-            }
-            if &o.name != name {
-                return Err(format!(
-                    "output model `{}` where `{name}` was expected",
-                    o.name
-                ));
-            }
-            for net in o.members().chain(&o.band_members) {
-                if net.sizes.len() < 3
-                    || net.sizes[0] != width
-                    || net.sizes[net.sizes.len() - 1] != 1
-                {
-                    return Err(format!(
-                        "output `{}`: network sizes {:?} do not fit a regressor of width {width}",
-                        o.name, net.sizes
-                    ));
+            self.check_output(o, name)?;
+        }
+        if let Some(b) = &self.base {
+            for (c, name) in b.outputs.iter().zip(&self.config.outputs) {
+                if let Some(a) = &c.network_alone {
+                    self.check_output(a, name)
+                        .map_err(|e| format!("the network alone kept beside the grey-box: {e}"))?;
                 }
-                let np = super::mlp::parameter_count(&net.sizes, net.bypass);
-                if net.params.len() != np {
-                    return Err(format!(
-                        "output `{}`: {} parameters, the network shape needs {np}",
-                        o.name,
-                        net.params.len()
-                    ));
-                }
-                if let Some(i) = net.params.iter().position(|p| !p.is_finite()) {
-                    return Err(format!("output `{}`: parameter {i} is not finite", o.name));
-                }
-            }
-            if let Some(b) = &o.band {
-                b.check().map_err(|e| format!("output `{}`: {e}", o.name))?;
-            }
-            let sc = [o.scaling.mean, o.scaling.std, o.train_min, o.train_max];
-            if !sc.iter().all(|v| v.is_finite()) || o.scaling.std <= 0.0 {
-                return Err(format!("output `{}`: invalid scaling", o.name));
             }
         }
         for (i, s) in self.input_scaling.iter().enumerate() {
             if !(s.mean.is_finite() && s.std.is_finite() && s.std > 0.0) {
                 return Err(format!("exogenous signal {i}: invalid scaling"));
             }
+        }
+        Ok(())
+    }
+
+    /// One output's model against the configuration (the output `name`).
+    fn check_output(&self, o: &OutputModel, name: &str) -> Result<(), String> {
+        let width = self.config.lags.width(self.config.n_signals());
+        if o.regressor.lags != self.config.lags
+            || o.regressor.du_gain.len() != self.config.n_signals()
+            || !(o.regressor.dy_gain.is_finite()
+                && o.regressor.du_gain.iter().all(|g| g.is_finite()))
+        {
+            return Err(format!(
+                "output `{}`: regressor does not match the configuration",
+                o.name
+            ));
+        }
+        if &o.name != name {
+            return Err(format!(
+                "output model `{}` where `{name}` was expected",
+                o.name
+            ));
+        }
+        for net in o.members().chain(&o.band_members) {
+            if net.sizes.len() < 3 || net.sizes[0] != width || net.sizes[net.sizes.len() - 1] != 1 {
+                return Err(format!(
+                    "output `{}`: network sizes {:?} do not fit a regressor of width {width}",
+                    o.name, net.sizes
+                ));
+            }
+            let np = super::mlp::parameter_count(&net.sizes, net.bypass);
+            if net.params.len() != np {
+                return Err(format!(
+                    "output `{}`: {} parameters, the network shape needs {np}",
+                    o.name,
+                    net.params.len()
+                ));
+            }
+            if let Some(i) = net.params.iter().position(|p| !p.is_finite()) {
+                return Err(format!("output `{}`: parameter {i} is not finite", o.name));
+            }
+        }
+        if let Some(b) = &o.band {
+            b.check().map_err(|e| format!("output `{}`: {e}", o.name))?;
+        }
+        let sc = [o.scaling.mean, o.scaling.std, o.train_min, o.train_max];
+        if !sc.iter().all(|v| v.is_finite()) || o.scaling.std <= 0.0 {
+            return Err(format!("output `{}`: invalid scaling", o.name));
         }
         Ok(())
     }
