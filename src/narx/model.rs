@@ -688,7 +688,7 @@ impl FittedNarx {
                 o.name
             ));
         }
-        if &o.name != name {
+        if o.name != name {
             return Err(format!(
                 "output model `{}` where `{name}` was expected",
                 o.name
