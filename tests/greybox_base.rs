@@ -228,7 +228,9 @@ fn a_network_that_beats_the_base_meets_the_base_under_a_residual_network() {
     assert!(h.iter().any(|&x| x > 1.5 * h[0]), "a band of one width");
     let back = FittedNarx::from_json(std::path::Path::new("m.json"), &m.to_json()).unwrap();
     assert_eq!(
-        back.predict(&test, Mode::FreeRun).unwrap()[0].half_width.as_ref(),
+        back.predict(&test, Mode::FreeRun).unwrap()[0]
+            .half_width
+            .as_ref(),
         Some(h)
     );
     let mut narrow = m.clone();
