@@ -39,6 +39,19 @@ fn test_r2(m: &FittedNarx, train: &IoRecord, test: &IoRecord) -> Vec<f64> {
         .collect()
 }
 
+/// The default identifier on the first half of `rec`: the model, the test half and its free-run
+/// test R^2 per output (printed with the base's choice of the first output).
+fn identify_first_half(rec: &IoRecord) -> (FittedNarx, IoRecord, Vec<f64>) {
+    let (train, test) = rec.split_halves();
+    let m = NarxConfig::new(train.input_names(), train.output_names())
+        .fit(&train)
+        .unwrap();
+    let r2 = test_r2(&m, &train, &test);
+    let choice = m.base.as_ref().map(|b| &b.outputs[0]);
+    eprintln!("{choice:?}: free-run test R^2 {r2:?}");
+    (m, test, r2)
+}
+
 #[test]
 fn a_2dof_record_with_new_input_combinations_in_its_test_half_is_identified() {
     let rec = am_2dof();
@@ -164,13 +177,8 @@ fn an_asymmetric_loop_is_identified_with_its_output_map() {
         {"sine": {"amplitude": 12.0, "frequency_hz": 3.1}}]}]}"#,
         0.005,
     );
-    let (train, test) = rec.split_halves();
-    let m = NarxConfig::new(train.input_names(), train.output_names())
-        .fit(&train)
-        .unwrap();
+    let (m, _, r2) = identify_first_half(&rec);
     let base = m.base.as_ref().expect("the grey-box base was tried");
-    let r2 = test_r2(&m, &train, &test);
-    eprintln!("{:?}: free-run test R^2 {r2:?}", base.outputs[0]);
     assert!(
         base.outputs[0].effects.ends_with("+ output map"),
         "{base:?}"
@@ -203,13 +211,8 @@ fn a_network_that_beats_the_base_meets_the_base_under_a_residual_network() {
         "inputs": [{"chirp": {"amplitude": 33.0, "f0_hz": 0.0137, "f1_hz": 0.116}}]}"#,
         0.086,
     );
-    let (train, test) = rec.split_halves();
-    let m = NarxConfig::new(train.input_names(), train.output_names())
-        .fit(&train)
-        .unwrap();
+    let (m, test, r2) = identify_first_half(&rec);
     let base = m.base.as_ref().expect("the grey-box base was tried");
-    let r2 = test_r2(&m, &train, &test);
-    eprintln!("{:?}: free-run test R^2 {r2:?}", base.outputs[0]);
     let choice = &base.outputs[0];
     assert!(
         matches!((choice.network_mse, choice.base_mse), (Some(n), Some(b)) if n < b),

@@ -110,6 +110,25 @@ impl IoRecord {
         })
     }
 
+    /// A record of one input `u` and one output `y` sampled every `ts` from t = 0 (unit tests).
+    #[cfg(test)]
+    pub(crate) fn siso(path: &str, ts: f64, u: Vec<f64>, y: Vec<f64>) -> IoRecord {
+        IoRecord {
+            path: path.into(),
+            ts,
+            t0: 0.0,
+            time_name: "t".into(),
+            inputs: vec![Signal {
+                name: "u".into(),
+                values: u,
+            }],
+            outputs: vec![Signal {
+                name: "y".into(),
+                values: y,
+            }],
+        }
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.inputs

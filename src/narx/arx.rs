@@ -139,7 +139,6 @@ impl Arx {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::data::Signal;
 
     fn record(n: usize, seed: u64) -> IoRecord {
         let mut g = crate::effect::noise::Gaussian::new(seed, 0);
@@ -148,20 +147,7 @@ mod tests {
         for k in 2..n {
             y[k] = 1.5 * y[k - 1] - 0.7 * y[k - 2] + 0.5 * u[k - 1] + 0.2 * u[k - 2] + 0.1;
         }
-        IoRecord {
-            path: "arx.csv".into(),
-            ts: 0.01,
-            t0: 0.0,
-            time_name: "t".into(),
-            inputs: vec![Signal {
-                name: "u".into(),
-                values: u,
-            }],
-            outputs: vec![Signal {
-                name: "y".into(),
-                values: y,
-            }],
-        }
+        IoRecord::siso("arx.csv", 0.01, u, y)
     }
 
     #[test]

@@ -875,7 +875,6 @@ struct ResidualFit<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::data::Signal;
 
     fn staircase(levels: &[f64], hold: usize) -> IoRecord {
         let u: Vec<f64> = levels
@@ -883,20 +882,7 @@ mod tests {
             .flat_map(|&l| std::iter::repeat_n(l, hold))
             .collect();
         let n = u.len();
-        IoRecord {
-            path: "r.csv".into(),
-            ts: 0.001,
-            t0: 0.0,
-            time_name: "t".into(),
-            inputs: vec![Signal {
-                name: "u".into(),
-                values: u,
-            }],
-            outputs: vec![Signal {
-                name: "y".into(),
-                values: vec![0.0; n],
-            }],
-        }
+        IoRecord::siso("r.csv", 0.001, u, vec![0.0; n])
     }
 
     #[test]
