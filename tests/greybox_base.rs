@@ -220,8 +220,6 @@ fn a_network_that_beats_the_base_meets_the_base_under_a_residual_network() {
     );
     assert_eq!(choice.model, BaseUse::BaseAndNetwork, "{choice:?}");
     assert!(r2[0] >= 0.995, "free-run test R^2 {}", r2[0]);
-    // where the residual network leaves its range (here: a range it cannot stay in), the
-    // grey-box alone predicts, with its own band
     let band = choice.base_band.clone().expect("the grey-box alone's band");
     let with = m.predict(&test, Mode::FreeRun).unwrap();
     // the network alone stays as the second opinion: the band widens where the two part, and
@@ -236,6 +234,19 @@ fn a_network_that_beats_the_base_meets_the_base_under_a_residual_network() {
             .as_ref(),
         Some(h)
     );
+    // where the network alone diverges the disagreement is unknown: the grey-box alone's band
+    let mut lost = m.clone();
+    let a = lost.base.as_mut().unwrap().outputs[0]
+        .network_alone
+        .as_mut()
+        .unwrap();
+    (a.train_min, a.train_max) = (1e6, 1e6);
+    let p = lost.predict(&test, Mode::FreeRun).unwrap();
+    assert_eq!(p[0].values, with[0].values);
+    let half = p[0].half_width.as_ref().expect("a band");
+    assert!(half.iter().all(|&h| h == band.half_width(0.0)));
+    // where the residual network leaves its range (here: a range it cannot stay in), the
+    // grey-box alone predicts, with its own band
     let mut narrow = m.clone();
     narrow.outputs[0].train_min = 1e6;
     narrow.outputs[0].train_max = 1e6;

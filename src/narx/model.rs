@@ -369,15 +369,27 @@ impl FittedNarx {
                     for (v, gv) in p.values.iter_mut().zip(&g[o]) {
                         *v += gv;
                     }
-                    // the network alone's free run is the second opinion that widens the band
-                    if let (Some(a), Some(b)) = (&alone[o], &self.outputs[o].band) {
-                        p.half_width = Some(
-                            p.values
-                                .iter()
-                                .zip(a)
-                                .map(|(v, a)| b.half_width((v - a).abs()))
-                                .collect(),
-                        );
+                    // the network alone's free run is the second opinion that widens the band;
+                    // where it diverged the disagreement is unknown, and the grey-box alone's
+                    // band (wider than the pair's where they agree) stands in
+                    let kept = base.outputs[o].network_alone.is_some() && mode == Mode::FreeRun;
+                    match (&alone[o], &self.outputs[o].band) {
+                        (Some(a), Some(b)) => {
+                            p.half_width = Some(
+                                p.values
+                                    .iter()
+                                    .zip(a)
+                                    .map(|(v, a)| b.half_width((v - a).abs()))
+                                    .collect(),
+                            );
+                        }
+                        (None, _) if kept => {
+                            p.half_width = base.outputs[o]
+                                .base_band
+                                .as_ref()
+                                .map(|b| vec![b.half_width(0.0); p.values.len()]);
+                        }
+                        _ => {}
                     }
                 }
                 super::base::BaseUse::Base => {
