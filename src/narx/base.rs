@@ -79,8 +79,8 @@ pub const SELECTION_REVERSALS: usize = 8;
 /// The samples of a long record's fitting part (`n_fit`) that its lists are fitted on to
 /// choose among them: the first [`BASE_SELECTION_SAMPLES`], or more, up to the whole fitting
 /// part, until every input has shown half of the fitting part's direction reversals (two at
-/// least: a loop) or [`SELECTION_REVERSALS`], the fewer (a staircase of long holds shows its loops over the
-/// whole record, not in its first samples).
+/// least: a loop) or [`SELECTION_REVERSALS`], the fewer (a staircase of long holds shows its
+/// loops over the whole record, not in its first samples).
 pub fn selection_samples(train: &IoRecord, n_fit: usize) -> usize {
     let n_fit = n_fit.min(train.len());
     train
@@ -843,10 +843,10 @@ impl NarxConfig {
                 // the band normalised by the disagreement with the network alone, when its
                 // free run over the training record did not diverge
                 if let (Some(a), Some(p)) = (&r.networks[o], &runs[k]) {
-                    let range = r.n_fit..n;
-                    let pred = |t: usize| r.sim[o][t] + p[t];
-                    let errs: Vec<f64> = range.clone().map(|t| held[t - r.n_fit] - p[t]).collect();
-                    let spread: Vec<f64> = range.map(|t| (pred(t) - a[t]).abs()).collect();
+                    let errs: Vec<f64> = (r.n_fit..n).map(|t| held[t - r.n_fit] - p[t]).collect();
+                    let spread: Vec<f64> = (r.n_fit..n)
+                        .map(|t| (r.sim[o][t] + p[t] - a[t]).abs())
+                        .collect();
                     if let Some(b) = Band::calibrate(&errs, &spread, BAND_LEVEL) {
                         m.outputs[o].band = Some(b);
                         m.outputs[o].band_members.clear();
@@ -896,7 +896,7 @@ mod tests {
         // fourth level's first sample)
         let rec = staircase(&levels, 12_000);
         assert_eq!(selection_samples(&rec, 60_000), 3 * 12_000 + 1);
-        // ten reversals in the fitting part: half of them
+        // fifteen reversals in the fitting part: eight (half of them, and the most asked)
         let rec = staircase(&[levels, levels].concat(), 12_000);
         let at = crate::effect::hysteresis::reversal_samples(&rec.inputs[0].values[..200_000]);
         assert_eq!(at.len(), 15);
