@@ -248,6 +248,13 @@ fn signed_rank_below(v: &[f64]) -> bool {
 /// ([`significantly_lower_error`]); the one-standard-error rule (Breiman, Friedman, Olshen and
 /// Stone 1984, section 3.4.3) with a test in place of the standard error. All failed: 0.
 pub fn simplest_not_clearly_worse(errors: &[Option<Vec<f64>>]) -> usize {
+    simplest_kept(errors, |lowest, e| !significantly_lower_error(lowest, e))
+}
+
+/// Of candidates ordered simplest first (`None`: failed), the simplest whose errors `kept`
+/// (the lowest-error candidate's errors, its errors) allows; else the lowest-error one. All
+/// failed: 0.
+fn simplest_kept(errors: &[Option<Vec<f64>>], kept: impl Fn(&[f64], &[f64]) -> bool) -> usize {
     let mse = |e: &Vec<f64>| e.iter().map(|v| v * v).sum::<f64>() / e.len().max(1) as f64;
     let Some(best) = (0..errors.len())
         .filter_map(|i| errors[i].as_ref().map(|e| (i, mse(e))))
@@ -260,12 +267,40 @@ pub fn simplest_not_clearly_worse(errors: &[Option<Vec<f64>>]) -> usize {
         .as_ref()
         .expect("the best candidate has errors");
     (0..best)
-        .find(|&i| {
-            errors[i]
-                .as_ref()
-                .is_some_and(|e| !significantly_lower_error(lowest, e))
-        })
+        .find(|&i| errors[i].as_ref().is_some_and(|e| kept(lowest, e)))
         .unwrap_or(best)
+}
+
+/// Whether the errors `b` lie more than one standard error above the errors `a` in mean
+/// squared error: the mean of the batch differences of mean squared error (b - a, over
+/// [`COMPARISON_BATCHES`] contiguous batches) above its standard error; the one-standard-error
+/// rule (Breiman, Friedman, Olshen and Stone 1984, section 3.4.3) on paired batches.
+pub fn more_than_one_standard_error_above(a: &[f64], b: &[f64]) -> bool {
+    let n = a.len().min(b.len());
+    let k = COMPARISON_BATCHES;
+    if n < 2 * k || !a[..n].iter().chain(&b[..n]).all(|v| v.is_finite()) {
+        return false;
+    }
+    let d: Vec<f64> = crate::graybox::blocks(n, k)
+        .into_iter()
+        .map(|r| {
+            let len = (r.len() as f64).max(1.0);
+            r.map(|i| b[i] * b[i] - a[i] * a[i]).sum::<f64>() / len
+        })
+        .collect();
+    let m = mean(&d);
+    let var = d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (k as f64 - 1.0);
+    m > (var / k as f64).sqrt()
+}
+
+/// [`simplest_not_clearly_worse`], the simpler kept only within one standard error of the
+/// best too ([`more_than_one_standard_error_above`]): the one-standard-error rule where a test
+/// lacks the power (a hundredfold error in a few of the batches, as good as the best in the
+/// others).
+pub fn simplest_within_one_standard_error(errors: &[Option<Vec<f64>>]) -> usize {
+    simplest_kept(errors, |lowest, e| {
+        !significantly_lower_error(lowest, e) && !more_than_one_standard_error_above(lowest, e)
+    })
 }
 
 /// Whether the mean of the batch values `v` is significantly below zero: one-sided Student t
@@ -525,5 +560,35 @@ mod loop_tests {
         // the best first stays
         assert_eq!(simplest_not_clearly_worse(&[e(1.0), e(0.2)]), 1);
         assert_eq!(simplest_not_clearly_worse(&[e(0.2), e(1.0)]), 0);
+    }
+
+    /// A held-out part of eight held levels: the simpler model as good in three (both at the
+    /// noise), 10^4 times worse in two and twice as bad in three. No test sees it (the signed
+    /// ranks split 6 to 30, the spreads hide the means), but its mean squared error lies far
+    /// more than one standard error above the best's.
+    #[test]
+    fn a_far_larger_error_in_a_few_batches_is_more_than_one_standard_error_above() {
+        let ratios: [f64; 8] = [0.81, 0.81, 0.81, 1e4, 1e4, 2.0, 2.0, 2.0];
+        let best: Vec<f64> = (0..80).map(|k| 0.01 * (k as f64 * 0.37).sin()).collect();
+        let simpler: Vec<f64> = best
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v * ratios[k / 10].sqrt())
+            .collect();
+        assert!(!significantly_lower_error(&best, &simpler));
+        assert!(more_than_one_standard_error_above(&best, &simpler));
+        assert!(!more_than_one_standard_error_above(&simpler, &best));
+        let (b, s) = (Some(best), Some(simpler));
+        assert_eq!(simplest_not_clearly_worse(&[s.clone(), b.clone()]), 0);
+        assert_eq!(simplest_within_one_standard_error(&[s, b.clone()]), 1);
+        // lower in half the batches and higher in the others: the simpler stays
+        let close: Vec<f64> = b
+            .as_ref()
+            .expect("errors")
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v * if (k / 10) % 2 == 0 { 0.7 } else { 1.2 })
+            .collect();
+        assert_eq!(simplest_within_one_standard_error(&[Some(close), b]), 0);
     }
 }

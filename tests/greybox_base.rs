@@ -186,14 +186,17 @@ fn an_asymmetric_loop_is_identified_with_its_output_map() {
     assert!(r2[0] >= 0.999, "free-run test R^2 {}", r2[0]);
 }
 
-/// A network that beats the grey-box alone on the validation part does not replace it: it
-/// meets the grey-box under a network on its residual, which extrapolates as the physics does.
 /// A Prandtl-Ishlinskii loop squashed by dead zones with creep, driven by a chirp whose test
 /// half is faster than anything in the training half (a plant zoo member's kind): the network
-/// alone won there (free-run test R^2 0.982) and the grey-box under the residual network now
-/// does (0.997).
+/// alone had been chosen there (free-run test R^2 0.982). A network that beats the grey-box
+/// alone on the validation part meets it under a network on its residual
+/// (`keeps_residual_network`, unit-tested in `narx::base`); with the lists chosen within one
+/// standard error on the validation part the grey-box here beats the network alone by itself.
+/// Either way the grey-box under the residual network predicts (0.998), its band widens where
+/// it and the network alone part, and the grey-box alone's band stands in where either network
+/// leaves its range.
 #[test]
-fn a_network_that_beats_the_base_meets_the_base_under_a_residual_network() {
+fn a_faster_chirp_is_predicted_by_the_grey_box_under_a_residual_network() {
     let th: Vec<String> = (1..=11).map(|k| format!("{}", 2.75 * k as f64)).collect();
     let plant = format!(
         r#"{{"name": "pi_dead_zones_creep", "inputs": ["u"], "outputs": [{{"name": "y",
@@ -215,8 +218,8 @@ fn a_network_that_beats_the_base_meets_the_base_under_a_residual_network() {
     let base = m.base.as_ref().expect("the grey-box base was tried");
     let choice = &base.outputs[0];
     assert!(
-        matches!((choice.network_mse, choice.base_mse), (Some(n), Some(b)) if n < b),
-        "the network alone beats the grey-box alone: {choice:?}"
+        matches!((choice.network_mse, choice.base_mse), (Some(_), Some(_))),
+        "the network alone and the grey-box alone both judged: {choice:?}"
     );
     assert_eq!(choice.model, BaseUse::BaseAndNetwork, "{choice:?}");
     assert!(r2[0] >= 0.995, "free-run test R^2 {}", r2[0]);

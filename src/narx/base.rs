@@ -4,7 +4,9 @@
 //! alone, with dynamics, with creep and dynamics, from the effect library, with coupling on a
 //! record of several inputs; each with its ridge chosen per output) are fitted on the training
 //! record's fitting part and run free over the whole training record; per output the simplest
-//! that the best does not clearly beat on the validation part is kept, and its errors there
+//! that the best does not clearly beat on the validation part, and that lies within one
+//! standard error of it there ([`crate::metrics::simplest_within_one_standard_error`]), is
+//! kept, and its errors there
 //! (the samples the network's selection scores) meet the network's free-run errors, per output:
 //!
 //! - [`BaseUse::Network`]: the network alone, as before, when its errors are clearly lower
@@ -41,7 +43,9 @@ use super::model::{FittedNarx, Mode, OutputModel};
 use super::NarxError;
 use crate::data::IoRecord;
 use crate::graybox::{FittedGreyBox, GreyBoxConfig, CV_FOLDS, RIDGES};
-use crate::metrics::{significantly_lower_error, simplest_not_clearly_worse};
+use crate::metrics::{
+    significantly_lower_error, simplest_not_clearly_worse, simplest_within_one_standard_error,
+};
 use crate::plant::{Plant, PlantSpec};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -490,6 +494,23 @@ fn richer_wins(rich: &Option<Vec<f64>>, simple: &Option<Vec<f64>>) -> bool {
     }
 }
 
+/// Whether the grey-box under a residual network (validation errors `residual`) is kept: on an
+/// output whose network alone beat the grey-box alone (`contested`), unless the network alone
+/// (`network`) clearly beats it too; on an output that chose the grey-box, when it clearly
+/// beats the grey-box alone (`base`).
+fn keeps_residual_network(
+    contested: bool,
+    residual: &Option<Vec<f64>>,
+    network: &Option<Vec<f64>>,
+    base: &Option<Vec<f64>>,
+) -> bool {
+    if contested {
+        residual.is_some() && !richer_wins(network, residual)
+    } else {
+        richer_wins(residual, base)
+    }
+}
+
 /// With `HYSTBENCH_TRACE` set: each candidate's held-out MSE (all of it, the tail, per batch
 /// of the comparison) and the choice, on standard error.
 fn trace_choice(
@@ -528,19 +549,25 @@ fn trace_choice(
 }
 
 /// The candidate judged best for output `o` ([`simplest_not_clearly_worse`] on the errors over
-/// `judged`, in units of `std`) and every candidate's errors.
+/// `judged`, in units of `std`; on a validation part, the record's continuation, within one
+/// standard error too: [`simplest_within_one_standard_error`]) and every candidate's errors.
 fn pick(
     cands: &[Candidate],
     o: usize,
     y: &[f64],
     judged: std::ops::Range<usize>,
     std: f64,
+    validation_part: bool,
 ) -> (usize, Vec<Option<Vec<f64>>>) {
     let errs: Vec<Option<Vec<f64>>> = cands
         .iter()
         .map(|c| errors(y, &c.sim[o], judged.clone(), std))
         .collect();
-    (simplest_not_clearly_worse(&errs), errs)
+    if validation_part {
+        (simplest_within_one_standard_error(&errs), errs)
+    } else {
+        (simplest_not_clearly_worse(&errs), errs)
+    }
 }
 
 /// A short record's base candidates, cross-validated before the networks are trained.
@@ -573,7 +600,7 @@ impl NarxConfig {
         let describes_every_output = !candidates.is_empty()
             && train.outputs.iter().enumerate().all(|(o, s)| {
                 let std = super::regressors::Standardiser::fit(&s.values).std;
-                let (p, errs) = pick(&candidates, o, &s.values, 0..n, std);
+                let (p, errs) = pick(&candidates, o, &s.values, 0..n, std, false);
                 mse(&errs[p]).is_some_and(|m| m < SHORT_BASE_DESCRIBES)
             });
         Some(ShortBase {
@@ -630,7 +657,7 @@ impl NarxConfig {
             .map(|(o, om)| {
                 let y = &train.outputs[o].values;
                 let std = om.scaling.std;
-                let (pick, errs) = pick(&cands, o, y, judged.clone(), std);
+                let (pick, errs) = pick(&cands, o, y, judged.clone(), std, !short);
                 if std::env::var_os("HYSTBENCH_TRACE").is_some() {
                     let tail = |p: &[f64]| errors(y, p, n_fit..n, std);
                     trace_choice(&om.name, o, &cands, &errs, pick, tail, &networks[o]);
@@ -641,7 +668,7 @@ impl NarxConfig {
         if !short {
             let judge = |o: usize, stages: &[Candidate]| {
                 let (y, std) = (&train.outputs[o].values, m.outputs[o].scaling.std);
-                let (pick, errs) = pick(stages, o, y, judged.clone(), std);
+                let (pick, errs) = pick(stages, o, y, judged.clone(), std, true);
                 if std::env::var_os("HYSTBENCH_TRACE").is_some() {
                     for (c, e) in stages.iter().zip(&errs) {
                         eprintln!(
@@ -830,11 +857,12 @@ impl NarxConfig {
                 .as_ref()
                 .and_then(|p| errors(&resid.outputs[k].values, p, r.n_fit..n, std));
             choices[o].residual_mse = mse(&re);
-            let keep = if r.contested.contains(&o) {
-                re.is_some() && !richer_wins(&r.network_errors[o], &re)
-            } else {
-                richer_wins(&re, &r.base_errors[o])
-            };
+            let keep = keeps_residual_network(
+                r.contested.contains(&o),
+                &re,
+                &r.network_errors[o],
+                &r.base_errors[o],
+            );
             if keep {
                 choices[o].model = BaseUse::BaseAndNetwork;
                 let alone = std::mem::replace(&mut m.outputs[o], net.outputs[k].clone());
@@ -906,5 +934,33 @@ mod tests {
         assert_eq!(selection_samples(&rec, 40_000), 3 * 12_000 + 1);
         let flat = staircase(&[1.0, 2.0, 3.0], 30_000);
         assert_eq!(selection_samples(&flat, 80_000), BASE_SELECTION_SAMPLES);
+    }
+
+    /// The two verdicts on a grey-box under a residual network: it must earn its place against
+    /// the grey-box alone, and keeps it against a network alone that only ties it.
+    #[test]
+    fn a_residual_network_must_beat_the_base_but_only_tie_the_network_alone() {
+        let errs = |scale: f64| -> Option<Vec<f64>> {
+            Some((0..80).map(|k| scale * (k as f64 * 0.37).sin()).collect())
+        };
+        let (residual, tie, far) = (errs(1.0), errs(1.05), errs(10.0));
+        // chosen grey-box: kept only when clearly better than the grey-box alone
+        assert!(keeps_residual_network(false, &residual, &None, &far));
+        assert!(!keeps_residual_network(false, &residual, &None, &errs(0.5)));
+        assert!(!keeps_residual_network(false, &None, &None, &far));
+        // contested: kept against a network alone lower in some batches and higher in others, or
+        // a little higher everywhere, not against one
+        // clearly better, and not when its own free run failed
+        let mixed: Vec<f64> = residual
+            .as_ref()
+            .expect("errors")
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v * if (k / 10) % 2 == 0 { 0.7 } else { 1.2 })
+            .collect();
+        assert!(keeps_residual_network(true, &residual, &Some(mixed), &far));
+        assert!(keeps_residual_network(true, &residual, &tie, &far));
+        assert!(!keeps_residual_network(true, &residual, &errs(0.1), &far));
+        assert!(!keeps_residual_network(true, &None, &tie, &far));
     }
 }
