@@ -948,9 +948,9 @@ mod tests {
         assert!(keeps_residual_network(false, &residual, &None, &far));
         assert!(!keeps_residual_network(false, &residual, &None, &errs(0.5)));
         assert!(!keeps_residual_network(false, &None, &None, &far));
-        // contested: kept against a network alone lower in some batches and higher in others, or
-        // a little higher everywhere, not against one
-        // clearly better, and not when its own free run failed
+        // contested: kept against a network alone lower in some batches and higher in others,
+        // or a little higher everywhere; not against one clearly better, nor when its own free
+        // run failed
         let mixed: Vec<f64> = residual
             .as_ref()
             .expect("errors")
