@@ -951,13 +951,7 @@ mod tests {
         // contested: kept against a network alone lower in some batches and higher in others,
         // or a little higher everywhere; not against one clearly better, nor when its own free
         // run failed
-        let mixed: Vec<f64> = residual
-            .as_ref()
-            .expect("errors")
-            .iter()
-            .enumerate()
-            .map(|(k, v)| v * if (k / 10) % 2 == 0 { 0.7 } else { 1.2 })
-            .collect();
+        let mixed = crate::metrics::batches_up_and_down(residual.as_ref().expect("errors"), 10);
         assert!(keeps_residual_network(true, &residual, &Some(mixed), &far));
         assert!(keeps_residual_network(true, &residual, &tie, &far));
         assert!(!keeps_residual_network(true, &residual, &errs(0.1), &far));
