@@ -312,7 +312,13 @@ pub fn simplest_within_one_standard_error(errors: &[Option<Vec<f64>>]) -> usize 
 pub(crate) fn batches_up_and_down(e: &[f64], batch: usize) -> Vec<f64> {
     e.iter()
         .enumerate()
-        .map(|(k, v)| v * if (k / batch) % 2 == 0 { 0.7 } else { 1.2 })
+        .map(|(k, v)| {
+            v * if (k / batch).is_multiple_of(2) {
+                0.7
+            } else {
+                1.2
+            }
+        })
         .collect()
 }
 
