@@ -533,18 +533,25 @@ mod loop_tests {
         assert!(!significantly_lower_error(&mixed, &b));
     }
 
+    /// Errors of 80 samples (8 batches of 10), and the same with each batch's mean squared
+    /// error multiplied by `ratios`.
+    fn best_and_scaled(ratios: &[f64; 8]) -> (Vec<f64>, Vec<f64>) {
+        let best: Vec<f64> = (0..80).map(|k| 0.01 * (k as f64 * 0.37).sin()).collect();
+        let scaled = best
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v * ratios[k / 10].sqrt())
+            .collect();
+        (best, scaled)
+    }
+
     /// The simpler model a little worse in six batches and run off in the last two (a
     /// development-zoo record: batch MSE ratios 1.4 to 2.3, then 10^4 and 10^5): clearly
     /// worse, though the run-off's spread hides it from both t-tests.
     #[test]
     fn a_run_off_at_the_end_is_clearly_worse() {
         let ratios: [f64; 8] = [1.62, 2.28, 1.71, 1.39, 2.37, 1.44, 1.26e4, 9.2e4];
-        let best: Vec<f64> = (0..80).map(|k| 0.01 * (k as f64 * 0.37).sin()).collect();
-        let worse: Vec<f64> = best
-            .iter()
-            .enumerate()
-            .map(|(k, v)| v * ratios[k / 10].sqrt())
-            .collect();
+        let (best, worse) = best_and_scaled(&ratios);
         assert!(significantly_lower_error(&best, &worse));
         assert!(!significantly_lower_error(&worse, &best));
         let l: Vec<f64> = ratios.iter().map(|r| -r.ln()).collect();
@@ -587,13 +594,7 @@ mod loop_tests {
     /// more than one standard error above the best's.
     #[test]
     fn a_far_larger_error_in_a_few_batches_is_more_than_one_standard_error_above() {
-        let ratios: [f64; 8] = [0.81, 0.81, 0.81, 1e4, 1e4, 2.0, 2.0, 2.0];
-        let best: Vec<f64> = (0..80).map(|k| 0.01 * (k as f64 * 0.37).sin()).collect();
-        let simpler: Vec<f64> = best
-            .iter()
-            .enumerate()
-            .map(|(k, v)| v * ratios[k / 10].sqrt())
-            .collect();
+        let (best, simpler) = best_and_scaled(&[0.81, 0.81, 0.81, 1e4, 1e4, 2.0, 2.0, 2.0]);
         assert!(!significantly_lower_error(&best, &simpler));
         assert!(more_than_one_standard_error_above(&best, &simpler));
         assert!(!more_than_one_standard_error_above(&simpler, &best));
