@@ -163,24 +163,9 @@ const T_7_95: f64 = 1.895;
 /// F. X. Diebold, R. S. Mariano, "Comparing predictive accuracy", J. Bus. Econ. Stat.
 /// 13(3):253-263, 1995.
 pub fn significantly_lower_error(a: &[f64], b: &[f64]) -> bool {
-    let n = a.len().min(b.len());
-    let k = COMPARISON_BATCHES;
-    if n < 2 * k || !a[..n].iter().chain(&b[..n]).all(|v| v.is_finite()) {
+    let Some((ma, mb)) = batch_mses(a, b) else {
         return false;
-    }
-    let batch_mse = |e: &[f64]| -> Vec<f64> {
-        (0..k)
-            .map(|i| {
-                mean(
-                    &e[i * n / k..(i + 1) * n / k]
-                        .iter()
-                        .map(|v| v * v)
-                        .collect::<Vec<_>>(),
-                )
-            })
-            .collect()
     };
-    let (ma, mb) = (batch_mse(&a[..n]), batch_mse(&b[..n]));
     let d: Vec<f64> = ma.iter().zip(&mb).map(|(x, y)| x - y).collect();
     if t_below(&d) {
         return true;
@@ -277,23 +262,36 @@ fn simplest_kept(errors: &[Option<Vec<f64>>], kept: impl Fn(&[f64], &[f64]) -> b
 /// rule (Breiman, Friedman, Olshen and Stone 1984, section 3.4.3) on paired batches, and `b`
 /// above `a` in most of the batches.
 pub fn more_than_one_standard_error_above(a: &[f64], b: &[f64]) -> bool {
+    let Some((ma, mb)) = batch_mses(a, b) else {
+        return false;
+    };
+    let d: Vec<f64> = mb.iter().zip(&ma).map(|(x, y)| x - y).collect();
+    // and above in most batches: a burst in a few batches where every candidate errs (the
+    // start of a validation part) does not outweigh the rest
+    t_statistic(&d) > 1.0 && 2 * d.iter().filter(|&&x| x > 0.0).count() > d.len()
+}
+
+/// The mean squared errors of `a` and of `b` over [`COMPARISON_BATCHES`] contiguous batches of
+/// their common length; `None` with fewer than two samples a batch or a non-finite error.
+fn batch_mses(a: &[f64], b: &[f64]) -> Option<(Vec<f64>, Vec<f64>)> {
     let n = a.len().min(b.len());
     let k = COMPARISON_BATCHES;
     if n < 2 * k || !a[..n].iter().chain(&b[..n]).all(|v| v.is_finite()) {
-        return false;
+        return None;
     }
-    let d: Vec<f64> = crate::graybox::blocks(n, k)
-        .into_iter()
-        .map(|r| {
-            let len = (r.len() as f64).max(1.0);
-            r.map(|i| b[i] * b[i] - a[i] * a[i]).sum::<f64>() / len
-        })
-        .collect();
-    let m = mean(&d);
-    let var = d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (k as f64 - 1.0);
-    // and above in most batches: a burst in a few batches where every candidate errs (the
-    // start of a validation part) does not outweigh the rest
-    m > (var / k as f64).sqrt() && 2 * d.iter().filter(|&&x| x > 0.0).count() > k
+    let batch_mse = |e: &[f64]| -> Vec<f64> {
+        (0..k)
+            .map(|i| {
+                mean(
+                    &e[i * n / k..(i + 1) * n / k]
+                        .iter()
+                        .map(|v| v * v)
+                        .collect::<Vec<_>>(),
+                )
+            })
+            .collect()
+    };
+    Some((batch_mse(&a[..n]), batch_mse(&b[..n])))
 }
 
 /// [`simplest_not_clearly_worse`], the simpler kept only within one standard error of the
@@ -325,13 +323,19 @@ pub(crate) fn batches_up_and_down(e: &[f64], batch: usize) -> Vec<f64> {
 /// Whether the mean of the batch values `v` is significantly below zero: one-sided Student t
 /// at 5 % with `v.len() - 1` = 7 degrees of freedom (all values equal: their sign).
 fn t_below(v: &[f64]) -> bool {
+    t_statistic(v) < -T_7_95
+}
+
+/// Student's t of the mean of `v` against zero (all values equal: infinite with their sign,
+/// 0 when they are 0).
+fn t_statistic(v: &[f64]) -> f64 {
     let k = v.len() as f64;
     let m = mean(v);
     let var = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (k - 1.0);
     if var == 0.0 {
-        return m < 0.0;
+        return if m == 0.0 { 0.0 } else { m * f64::INFINITY };
     }
-    m / (var / k).sqrt() < -T_7_95
+    m / (var / k).sqrt()
 }
 
 /// The largest magnitude of a signal (0 for an empty one).

@@ -5,8 +5,8 @@
 //! record of several inputs; each with its ridge chosen per output) are fitted on the training
 //! record's fitting part and run free over the whole training record; per output the simplest
 //! that the best does not clearly beat on the validation part, and that lies within one
-//! standard error of it there ([`crate::metrics::simplest_within_one_standard_error`]), is
-//! kept, and its errors there
+//! standard error of it there or below it in half the batches
+//! ([`crate::metrics::simplest_within_one_standard_error`]), is kept, and its errors there
 //! (the samples the network's selection scores) meet the network's free-run errors, per output:
 //!
 //! - [`BaseUse::Network`]: the network alone, as before, when its errors are clearly lower
