@@ -11,7 +11,7 @@
 
 use hystbench::data::IoRecord;
 use hystbench::diagnose::{diagnose, DiagnoseOptions};
-use hystbench::effect::basis::{BasisBank, BasisContext, EvidenceContext};
+use hystbench::effect::basis::{BasisBank, BasisContext, EvidenceContext, Signal};
 use hystbench::effect::fitting::{Column, PathSetup, TermFit, TermSpec};
 use hystbench::effect::spec::{parse_spec, BoxedOperator};
 use hystbench::effect::{
@@ -140,9 +140,10 @@ impl Effect for ElectrostrictionEffect {
     ) -> Result<Box<dyn EffectSpec>, erased_serde::Error> {
         parse_spec::<ElectrostrictionSpec>(d)
     }
-    fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
+    fn basis<'a>(&self, ctx: &BasisContext<'a>) -> Option<BasisBank<'a>> {
         let mut bank = BasisBank::new(NAME);
-        bank.push("u^2".into(), square(ctx.inputs[ctx.direct]));
+        let u = ctx.inputs[ctx.direct];
+        bank.push("u^2".into(), Signal::of(move |k| u[k] * u[k]));
         Some(bank)
     }
     fn evidence(&self, ctx: &EvidenceContext) -> String {

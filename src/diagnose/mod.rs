@@ -28,13 +28,14 @@ pub mod residual;
 pub mod whiteness;
 
 use crate::data::IoRecord;
-use crate::effect::basis::{BasisContext, EvidenceContext};
+use crate::effect::basis::{BasisContext, EvidenceContext, Signal};
 use crate::effect::{registry, EffectName};
 use crate::graybox::FitMemo;
 pub use crate::metrics::holds;
 use crate::metrics::rms;
 pub use refit::{refit_check, RefitCheck, RefitOptions};
 use serde::Serialize;
+use std::ops::Range;
 pub use whiteness::{whiteness, Whiteness};
 
 /// A smaller bank is named instead of the top one when the top bank explains less than this
@@ -335,61 +336,71 @@ fn where_left(outputs: &[OutputDiagnosis]) -> Vec<String> {
         .collect()
 }
 
-/// The bank of `effect` for one output (none for a record without inputs, nor a bank of no
-/// signal).
-fn bank_of(ctx: &BasisContext, effect: EffectName) -> Option<crate::effect::basis::BasisBank> {
-    if ctx.inputs.is_empty() {
-        return None;
-    }
-    registry::effect(effect)?
-        .basis(ctx)
-        .filter(|b| !b.signals.is_empty())
+/// The banks of one output's diagnosis, computed a block of rows at a time: each effect's
+/// signals' place among the columns of the folds' cross products ([`regression::FoldGrams`],
+/// column 0 the prediction).
+struct Banks {
+    /// Per effect with a bank (registry order): its name and its columns.
+    columns: Vec<(EffectName, Range<usize>)>,
+    grams: regression::FoldGrams,
 }
 
-/// How much of the residual `e` each bank explains out of sample, best first, and each
-/// bank's size. A present effect is scored alone (how much of the residual is its misfit); a
-/// missing one on top of the present ones, or of the prediction alone when the present banks
-/// extrapolate badly out of sample. The banks of the effects the model has are
-/// `model_banks`; the others are computed one at a time (a long record's banks are not held
-/// together).
-fn score_banks(
-    e: &[f64],
-    ctx: &BasisContext,
-    model_banks: &[crate::effect::basis::BasisBank],
-    baseline: &[&[f64]],
-    model_effects: &[EffectName],
-) -> (Vec<EffectScore>, Vec<(EffectName, usize)>) {
-    let mut scores = Vec::new();
-    let mut sizes = Vec::new();
-    for effect in registry::effects() {
-        let name = effect.name();
-        let in_model = model_effects.contains(&name);
-        let computed;
-        let bank = if in_model {
-            match model_banks.iter().find(|b| b.effect == name) {
-                Some(b) => b,
-                None => continue,
-            }
-        } else {
-            match bank_of(ctx, name) {
-                Some(b) => {
-                    computed = b;
-                    &computed
+impl Banks {
+    /// The banks of every effect for the residual `e` of the prediction in `ctx` (none for a
+    /// record without inputs, nor a bank of no signal): one pass over the record.
+    fn new(e: &[f64], ctx: &BasisContext) -> Banks {
+        let mut signals = vec![Signal::samples(ctx.prediction)];
+        let mut columns = Vec::new();
+        if !ctx.inputs.is_empty() {
+            for effect in registry::effects() {
+                if let Some(b) = effect.basis(ctx).filter(|b| !b.is_empty()) {
+                    columns.push((b.effect, signals.len()..signals.len() + b.len()));
+                    signals.extend(b.signals);
                 }
-                None => continue,
             }
-        };
-        sizes.push((bank.effect, bank.signals.len()));
-        let cols: Vec<&[f64]> = bank.signals.iter().map(Vec::as_slice).collect();
-        let minimal: &[&[f64]] = &[ctx.prediction];
-        let bases: Vec<&[&[f64]]> = if in_model {
+        }
+        Banks {
+            grams: regression::FoldGrams::new(e, &mut signals),
+            columns,
+        }
+    }
+
+    /// The columns of `effect`'s bank, if it has one.
+    fn of(&self, effect: EffectName) -> Option<Vec<usize>> {
+        self.columns
+            .iter()
+            .find(|(n, _)| *n == effect)
+            .map(|(_, r)| r.clone().collect())
+    }
+
+    /// Number of signals in `effect`'s bank.
+    fn size(&self, effect: EffectName) -> Option<usize> {
+        self.of(effect).map(|c| c.len())
+    }
+}
+
+/// How much of the residual each bank explains out of sample, best first. A present effect
+/// is scored alone (how much of the residual is its misfit); a missing one on top of the
+/// present ones (`baseline`: the prediction and the banks of the effects the model has), or of
+/// the prediction alone when the present banks extrapolate badly out of sample.
+fn score_banks(
+    banks: &Banks,
+    baseline: &[usize],
+    model_effects: &[EffectName],
+) -> Vec<EffectScore> {
+    let mut scores = Vec::new();
+    for (name, cols) in &banks.columns {
+        let in_model = model_effects.contains(name);
+        let cols: Vec<usize> = cols.clone().collect();
+        let minimal: &[usize] = &[0];
+        let bases: Vec<&[usize]> = if in_model {
             vec![minimal]
         } else {
             vec![baseline, minimal]
         };
-        if let Some(x) = regression::explained_out_of_sample(e, &bases, &cols) {
+        if let Some(x) = banks.grams.explained(&bases, &cols) {
             scores.push(EffectScore {
-                effect: bank.effect,
+                effect: *name,
                 explained: x.fraction,
                 rms_now: x.rms_baseline,
                 rms_after: x.rms_with_bank,
@@ -398,42 +409,34 @@ fn score_banks(
         }
     }
     scores.sort_by(|a, b| b.explained.total_cmp(&a.explained));
-    (scores, sizes)
+    scores
 }
 
 /// Parsimony: a smaller bank that leaves the top bank almost nothing to add (nested
 /// out-of-sample test) names the simpler effect (e.g. a dashpot rather than a mode when the
 /// model is a static gain, whose prediction's lags contain the input's rate). Returns the
-/// simpler effect and what the top bank adds on top of it. `sizes` are the banks' sizes.
+/// simpler effect and what the top bank adds on top of it.
 fn simpler_effect(
-    e: &[f64],
     m: EffectName,
     scores: &[EffectScore],
-    ctx: &BasisContext,
-    sizes: &[(EffectName, usize)],
-    baseline: &[&[f64]],
+    banks: &Banks,
+    baseline: &[usize],
     threshold: f64,
 ) -> Option<(EffectName, f64)> {
-    let size_of = |e: EffectName| sizes.iter().find(|(n, _)| *n == e).map(|(_, s)| *s);
-    let top_size = size_of(m)?;
+    let top_size = banks.size(m)?;
     let mut cands: Vec<&EffectScore> = scores
         .iter()
         .filter(|s| !s.in_model && s.effect != m && s.explained >= threshold)
-        .filter(|s| size_of(s.effect).is_some_and(|n| n < top_size))
+        .filter(|s| banks.size(s.effect).is_some_and(|n| n < top_size))
         .collect();
-    cands.sort_by_key(|s| size_of(s.effect).unwrap_or(usize::MAX));
-    if cands.is_empty() {
-        return None;
-    }
-    let tb = bank_of(ctx, m)?;
-    let top_cols: Vec<&[f64]> = tb.signals.iter().map(Vec::as_slice).collect();
+    cands.sort_by_key(|s| banks.size(s.effect).unwrap_or(usize::MAX));
+    let top_cols = banks.of(m)?;
     for c in cands {
-        let Some(cb) = bank_of(ctx, c.effect) else {
+        let Some(cb) = banks.of(c.effect) else {
             continue;
         };
-        let mut base = baseline.to_vec();
-        base.extend(cb.signals.iter().map(Vec::as_slice));
-        if let Some(x) = regression::explained_out_of_sample(e, &[&base], &top_cols) {
+        let base: Vec<usize> = baseline.iter().copied().chain(cb).collect();
+        if let Some(x) = banks.grams.explained(&[&base], &top_cols) {
             if x.fraction < PARSIMONY {
                 return Some((c.effect, x.fraction));
             }
@@ -465,18 +468,16 @@ fn diagnose_output(
         prediction: yhat,
         ts: rec.ts,
     };
+    let banks = Banks::new(&e, &ctx);
     // the baseline: the prediction and the banks of the effects the model has, so that a
     // misfit of a present effect is not taken for a missing one
-    let model_banks: Vec<_> = registry::effects()
-        .into_iter()
-        .filter(|x| model_effects.contains(&x.name()))
-        .filter_map(|x| bank_of(&ctx, x.name()))
-        .collect();
-    let mut baseline: Vec<&[f64]> = vec![yhat];
-    for b in &model_banks {
-        baseline.extend(b.signals.iter().map(Vec::as_slice));
+    let mut baseline: Vec<usize> = vec![0];
+    for (name, cols) in &banks.columns {
+        if model_effects.contains(name) {
+            baseline.extend(cols.clone());
+        }
     }
-    let (scores, sizes) = score_banks(&e, &ctx, &model_banks, &baseline, model_effects);
+    let scores = score_banks(&banks, &baseline, model_effects);
     let w = whiteness(&e, &named, opts.max_lag);
     let shape = match inputs.get(direct) {
         Some(u) => residual::describe(&e, yhat, u, w.white),
@@ -493,7 +494,7 @@ fn diagnose_output(
         .map(|s| s.effect);
     let mut simpler_than: Option<(EffectName, f64)> = None;
     if let (Some(m), Some(top)) = (missing, top) {
-        let simpler = simpler_effect(&e, m, &scores, &ctx, &sizes, &baseline, opts.threshold);
+        let simpler = simpler_effect(m, &scores, &banks, &baseline, opts.threshold);
         if let Some((c, f)) = simpler {
             missing = Some(c);
             simpler_than = Some((top.effect, f));

@@ -200,16 +200,19 @@ pub fn explained_part(place: Place, e: &[f64], yhat: &[f64], u: &[f64]) -> Optio
 /// Where the residual `e` of prediction `yhat` (driven by input `u`) concentrates; `white`:
 /// the residual passed the correlation tests (then nothing is described).
 pub fn describe(e: &[f64], yhat: &[f64], u: &[f64], white: bool) -> ResidualShape {
-    let banks = Place::ALL.map(|p| (p, bank(p, yhat, u)));
     let base: &[&[f64]] = &[yhat];
-    let mut shares: Vec<PlaceShare> = banks
+    // one place's bank at a time (a long record's banks are not held together)
+    let mut shares: Vec<PlaceShare> = Place::ALL
         .iter()
-        .filter(|(_, b)| !b.is_empty())
-        .filter_map(|(place, bank)| {
+        .filter_map(|&place| {
+            let bank = bank(place, yhat, u);
+            if bank.is_empty() {
+                return None;
+            }
             let cols: Vec<&[f64]> = bank.iter().map(Vec::as_slice).collect();
             let x = explained_out_of_sample(e, &[base], &cols)?;
             Some(PlaceShare {
-                place: *place,
+                place,
                 explained: x.fraction,
             })
         })

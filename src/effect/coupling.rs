@@ -10,10 +10,10 @@
 //! - M. Rakotondrabe, Nonlinear Dynamics, 2017 (multivariable Prandtl-Ishlinskii).
 //! - D. Habineza, M. Rakotondrabe, Y. Le Gorrec, IEEE TCST, 2015 (multivariable Bouc-Wen).
 
-use super::basis::{play_thresholds, BasisBank, BasisContext, EvidenceContext};
+use super::basis::{play_thresholds, BasisBank, BasisContext, EvidenceContext, Signal};
 use super::feature::FeatureSpec;
 use super::fitting::{RecordError, RecordView};
-use super::play::play_bank;
+use super::play::Play;
 use super::{Effect, EffectName, StructureView};
 
 /// The effect's name.
@@ -21,7 +21,7 @@ pub const NAME: EffectName = EffectName::new("coupling");
 
 /// The other axes: every input but the direct one, and a few of their plays;
 /// `None` for a single-input record.
-pub fn basis(ctx: &BasisContext) -> Option<BasisBank> {
+pub fn basis<'a>(ctx: &BasisContext<'a>) -> Option<BasisBank<'a>> {
     if ctx.inputs.len() < 2 {
         return None;
     }
@@ -30,10 +30,12 @@ pub fn basis(ctx: &BasisContext) -> Option<BasisBank> {
         if j == ctx.direct {
             continue;
         }
-        bank.push(format!("u{}", j + 1), u.to_vec());
-        let th = play_thresholds(u, 4);
-        for (r, z) in th.iter().zip(play_bank(u, &th)) {
-            bank.push(format!("play(u{}, r={r:.3})", j + 1), z);
+        bank.push(format!("u{}", j + 1), Signal::samples(u));
+        for r in play_thresholds(u, 4) {
+            bank.push(
+                format!("play(u{}, r={r:.3})", j + 1),
+                Signal::samples(u).through(Box::new(Play::new(r, 0.0))),
+            );
         }
     }
     Some(bank)
@@ -58,7 +60,7 @@ impl Effect for CouplingEffect {
             .enumerate()
             .any(|(o, paths)| paths.iter().any(|&j| j != o.min(last)))
     }
-    fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
+    fn basis<'a>(&self, ctx: &BasisContext<'a>) -> Option<BasisBank<'a>> {
         basis(ctx)
     }
     fn evidence(&self, ctx: &EvidenceContext) -> String {

@@ -13,7 +13,7 @@
 //! - M. Rakotondrabe, C. Clevy, P. Lutz, IEEE T-ASE 7(3):440-450, 2010.
 //! - Physik Instrumente, "Piezo tutorial: creep" (1-2 % per decade).
 
-use super::basis::{BasisBank, BasisContext, EvidenceContext};
+use super::basis::{BasisBank, BasisContext, EvidenceContext, Signal};
 use super::draw::{Dice, DrawContext};
 use super::feature::{FeatureKind, FeatureSpec};
 use super::fitting::{FilterFit, FilterState, OutputSetup, Prepared, RecordError, RecordView};
@@ -213,14 +213,14 @@ impl Operator for KelvinVoigtState {
 
 /// Basis bank: slow first-order states of the model's prediction, time constants one per half
 /// decade from 20 samples (at least 0.05 s) up to a third of the record.
-pub fn basis(ctx: &BasisContext) -> BasisBank {
+pub fn basis<'a>(ctx: &BasisContext<'a>) -> BasisBank<'a> {
     let mut bank = BasisBank::new(NAME);
     let span = ctx.len() as f64 * ctx.ts;
     let mut tau = (20.0 * ctx.ts).max(0.05);
     while tau <= span / 3.0 {
         bank.push(
             format!("creep state(tau={tau:.3} s)"),
-            kelvin_voigt_state(ctx.prediction, tau, ctx.ts),
+            Signal::samples(ctx.prediction).through(Box::new(KelvinVoigtState::new(tau, ctx.ts))),
         );
         tau *= 10f64.sqrt();
     }
@@ -498,7 +498,7 @@ impl Effect for CreepEffect {
     fn draw(&self, _ctx: &DrawContext, dice: &mut Dice) -> Option<Box<dyn EffectSpec>> {
         Some(Box::new(draw(dice)))
     }
-    fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
+    fn basis<'a>(&self, ctx: &BasisContext<'a>) -> Option<BasisBank<'a>> {
         Some(basis(ctx))
     }
     fn evidence(&self, ctx: &EvidenceContext) -> String {

@@ -16,7 +16,7 @@
 //!   nanopositioning", IEEE T-CST 15(5):802-823, 2007 (thermal drift of nanopositioners).
 //! - Physik Instrumente, "Piezo tutorial: drift and temperature" (thermal drift, settling).
 
-use super::basis::{BasisBank, BasisContext, EvidenceContext};
+use super::basis::{BasisBank, BasisContext, EvidenceContext, Signal};
 use super::draw::Dice;
 use super::fitting::{Column, OutputSetup, TermFit, TermSpec};
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
@@ -149,12 +149,13 @@ pub const BANK_COSINES: usize = 6;
 /// slow trend adds to a residual, whatever its shape.
 pub fn slow_cosines(n: usize, count: usize) -> Vec<Vec<f64>> {
     (1..=count)
-        .map(|k| {
-            (0..n)
-                .map(|j| (std::f64::consts::PI * k as f64 * (j as f64 + 0.5) / n as f64).cos())
-                .collect()
-        })
+        .map(|k| (0..n).map(|j| slow_cosine(k, j, n)).collect())
         .collect()
+}
+
+/// Sample `j` of the `k`-th of [`slow_cosines`] over `n` samples.
+pub fn slow_cosine(k: usize, j: usize, n: usize) -> f64 {
+    (std::f64::consts::PI * k as f64 * (j as f64 + 0.5) / n as f64).cos()
 }
 
 /// Time constants of the fitted drift, as shares of the training record's span.
@@ -252,13 +253,14 @@ impl Effect for DriftEffect {
             time_constants_s: vec![tau],
         }))
     }
-    fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
+    fn basis<'a>(&self, ctx: &BasisContext<'a>) -> Option<BasisBank<'a>> {
         let mut bank = BasisBank::new(NAME);
-        for (k, c) in slow_cosines(ctx.len(), BANK_COSINES)
-            .into_iter()
-            .enumerate()
-        {
-            bank.push(format!("cos({} pi t / T)", k + 1), c);
+        let n = ctx.len();
+        for k in 1..=BANK_COSINES {
+            bank.push(
+                format!("cos({k} pi t / T)"),
+                Signal::of(move |j| slow_cosine(k, j, n)),
+            );
         }
         Some(bank)
     }

@@ -10,7 +10,7 @@
 //! - C. Moler, C. Van Loan, "Nineteen dubious ways to compute the exponential of a matrix,
 //!   twenty-five years later", SIAM Review 45(1):3-49, 2003 (scaling and squaring).
 
-use super::basis::{BasisBank, BasisContext, EvidenceContext};
+use super::basis::{BasisBank, BasisContext, EvidenceContext, Signal};
 use super::draw::{Dice, DrawContext};
 use super::feature::{FeatureKind, FeatureSpec};
 use super::fitting::{
@@ -188,7 +188,7 @@ fn lowest_resonator(span: f64, ts: f64) -> f64 {
 /// damping 0.1; each with its one-sample delay, which spans the filter's two states), and a few
 /// short delays of the prediction (first-order lags, delays): a missing mode or lag acting on
 /// the prediction is a combination of them.
-pub fn basis(ctx: &BasisContext) -> BasisBank {
+pub fn basis<'a>(ctx: &BasisContext<'a>) -> BasisBank<'a> {
     let mut bank = BasisBank::new(NAME);
     let y = ctx.prediction;
     let n = y.len();
@@ -198,7 +198,7 @@ pub fn basis(ctx: &BasisContext) -> BasisBank {
         }
         bank.push(
             format!("prediction(k-{lag})"),
-            (0..n).map(|k| y[k.saturating_sub(lag)]).collect(),
+            Signal::samples(y).delayed(lag),
         );
     }
     let span = n as f64 * ctx.ts;
@@ -206,18 +206,16 @@ pub fn basis(ctx: &BasisContext) -> BasisBank {
     let f_max = 0.35 / ctx.ts;
     // start the filters at the first value so that a non-zero start does not ring
     let y0 = y.first().copied().unwrap_or(0.0);
-    let shifted: Vec<f64> = y.iter().map(|v| v - y0).collect();
     while f <= f_max {
         let d = Dynamics {
             natural_frequency_hz: f,
             damping_ratio: 0.1,
             dc_gain: 1.0,
         };
-        if let Ok(mut op) = d.operator(ctx.ts) {
-            let x = op.apply(&shifted);
-            let x1: Vec<f64> = (0..n).map(|k| x[k.saturating_sub(1)]).collect();
-            bank.push(format!("resonator({f:.2} Hz)"), x);
-            bank.push(format!("resonator({f:.2} Hz)(k-1)"), x1);
+        if let Ok(op) = d.operator(ctx.ts) {
+            let x = || Signal::of(move |k| y[k] - y0).through(Box::new(op.clone()));
+            bank.push(format!("resonator({f:.2} Hz)"), x());
+            bank.push(format!("resonator({f:.2} Hz)(k-1)"), x().delayed(1));
         }
         f *= 1.3;
     }
@@ -649,7 +647,7 @@ impl Effect for DynamicsEffect {
     fn draw(&self, ctx: &DrawContext, dice: &mut Dice) -> Option<Box<dyn EffectSpec>> {
         Some(Box::new(draw(ctx, dice)))
     }
-    fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
+    fn basis<'a>(&self, ctx: &BasisContext<'a>) -> Option<BasisBank<'a>> {
         Some(basis(ctx))
     }
     fn evidence(&self, _ctx: &EvidenceContext) -> String {

@@ -5,7 +5,7 @@
 //! A plant file names the operator: `{"bouc_wen": {...}}`, `{"prandtl_ishlinskii": {...}}` or
 //! `{"linear": {"gain": 0.8}}`.
 
-use super::basis::{play_thresholds, BasisBank, BasisContext, EvidenceContext};
+use super::basis::{play_thresholds, BasisBank, BasisContext, EvidenceContext, Signal};
 use super::bouc_wen::{BoucWen, BoucWenOp, BoucWenSpec};
 use super::draw::{Dice, DrawContext, PathRole};
 use super::feature::{FeatureKind, FeatureSpec};
@@ -13,7 +13,7 @@ use super::fitting::{
     Column, PathSetup, RecordError, RecordView, TermFit, TermSpec, TermState, Variant, FD_STEP,
     LIMIT, SECOND_STAGE_PARAM,
 };
-use super::play::{play_bank, play_operator};
+use super::play::{play_operator, Play};
 use super::prandtl_ishlinskii::{
     dead_zone, DeadZoneSpec, PrandtlIshlinskii, PrandtlIshlinskiiOp, PrandtlIshlinskiiSpec,
 };
@@ -115,12 +115,15 @@ impl Operator for HysteresisOp {
 }
 
 /// Basis bank: plays of the direct input at thresholds spread over its half range.
-pub fn basis(ctx: &BasisContext) -> BasisBank {
+pub fn basis<'a>(ctx: &BasisContext<'a>) -> BasisBank<'a> {
     let u = ctx.inputs[ctx.direct];
     let mut bank = BasisBank::new(NAME);
     let th = play_thresholds(u, 8);
-    for (r, z) in th.iter().zip(play_bank(u, &th)) {
-        bank.push(format!("play(u, r={r:.3})"), z);
+    for r in th {
+        bank.push(
+            format!("play(u, r={r:.3})"),
+            Signal::samples(u).through(Box::new(Play::new(r, 0.0))),
+        );
     }
     bank
 }
@@ -1239,7 +1242,7 @@ impl Effect for HysteresisEffect {
     fn draw(&self, ctx: &DrawContext, dice: &mut Dice) -> Option<Box<dyn EffectSpec>> {
         Some(Box::new(draw(ctx, dice)))
     }
-    fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
+    fn basis<'a>(&self, ctx: &BasisContext<'a>) -> Option<BasisBank<'a>> {
         Some(basis(ctx))
     }
     fn evidence(&self, ctx: &EvidenceContext) -> String {

@@ -18,7 +18,7 @@
 //! - J. Tobin, "Estimation of relationships for limited dependent variables", Econometrica
 //!   26(1):24-36, 1958 (censored regression).
 
-use super::basis::{BasisBank, BasisContext, EvidenceContext};
+use super::basis::{BasisBank, BasisContext, EvidenceContext, Signal};
 use super::draw::Dice;
 use super::fitting::{Censoring, SensorFit};
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
@@ -106,6 +106,15 @@ impl Params for Saturation {
 /// Hinges of a prediction beyond its 3, 10, 90 and 97 % quantiles, max(y_hat - q, 0) and
 /// min(y_hat - q, 0): what clipping the top or the bottom of a model's output takes away.
 pub fn hinges(prediction: &[f64]) -> Vec<Vec<f64>> {
+    hinge_levels(prediction)
+        .into_iter()
+        .map(|h| prediction.iter().map(|&v| hinge(v, h)).collect())
+        .collect()
+}
+
+/// The levels of [`hinges`], in their order: (level, above) at the 90 % quantile above, the
+/// 10 % below, then the 97 % above and the 3 % below.
+pub fn hinge_levels(prediction: &[f64]) -> Vec<(f64, bool)> {
     let mut s: Vec<f64> = prediction
         .iter()
         .copied()
@@ -115,14 +124,19 @@ pub fn hinges(prediction: &[f64]) -> Vec<Vec<f64>> {
         return Vec::new();
     }
     s.sort_by(f64::total_cmp);
-    let mut bank = Vec::new();
-    for q in [0.9, 0.97] {
-        let hi = quantile(&s, q);
-        bank.push(prediction.iter().map(|v| (v - hi).max(0.0)).collect());
-        let lo = quantile(&s, 1.0 - q);
-        bank.push(prediction.iter().map(|v| (v - lo).min(0.0)).collect());
+    [0.9, 0.97]
+        .iter()
+        .flat_map(|&q| [(quantile(&s, q), true), (quantile(&s, 1.0 - q), false)])
+        .collect()
+}
+
+/// One hinge of [`hinges`] at a value of the prediction.
+pub fn hinge(v: f64, (level, above): (f64, bool)) -> f64 {
+    if above {
+        (v - level).max(0.0)
+    } else {
+        (v - level).min(0.0)
     }
-    bank
 }
 
 /// The standard deviation of white noise on a smooth signal, from its second differences
@@ -253,11 +267,15 @@ impl Effect for SaturationEffect {
         let lower = (side != 0).then(|| limit(false, dice));
         Some(Box::new(SaturationSpec { lower, upper }))
     }
-    fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
+    fn basis<'a>(&self, ctx: &BasisContext<'a>) -> Option<BasisBank<'a>> {
         let mut bank = BasisBank::new(NAME);
-        for (i, h) in hinges(ctx.prediction).into_iter().enumerate() {
+        let y = ctx.prediction;
+        for (i, h) in hinge_levels(y).into_iter().enumerate() {
             let (side, q) = (["above", "below"][i % 2], [90, 97][i / 2]);
-            bank.push(format!("prediction {side} its {q} % quantile"), h);
+            bank.push(
+                format!("prediction {side} its {q} % quantile"),
+                Signal::of(move |k| hinge(y[k], h)),
+            );
         }
         Some(bank)
     }

@@ -27,7 +27,7 @@
 //! - B. F. Spencer Jr., S. J. Dyke, M. K. Sain, J. D. Carlson, "Phenomenological model for
 //!   magnetorheological dampers", J. Eng. Mech. 123(3):230-238, 1997.
 
-use super::basis::{BasisBank, BasisContext, EvidenceContext};
+use super::basis::{BasisBank, BasisContext, EvidenceContext, Signal};
 use super::feature::{FeatureKind, FeatureSpec};
 use super::fitting::{
     log_bounded, log_bounded_inv, Column, PathSetup, TermFit, TermSpec, FD_STEP, LIMIT,
@@ -282,7 +282,7 @@ struct SpencerTerm<'a> {
     range: f64,
 }
 
-impl SpencerTerm<'_> {
+impl<'a> SpencerTerm<'a> {
     /// The model at c1 = 1 for transformed parameters `th`.
     fn unit(&self, th: &[f64]) -> Spencer {
         let c0 = log_bounded(th[0], 1e-4, 1e2);
@@ -297,6 +297,14 @@ impl SpencerTerm<'_> {
             alpha: stiffness * (1.0 - share),
             b,
             gamma: b * th[4].clamp(-LIMIT, LIMIT).tanh(),
+        }
+    }
+
+    /// The column of `th` computed a block at a time (NaN where it cannot be discretised).
+    fn signal(&self, th: &[f64]) -> Signal<'a> {
+        match self.unit(th).operator(self.ts) {
+            Ok(op) => Signal::samples(self.u).through(Box::new(op)),
+            Err(_) => Signal::of(|_| f64::NAN),
         }
     }
 
@@ -380,7 +388,7 @@ pub const BANK_SHAPES: [(f64, f64); 6] = [
 
 /// Basis bank: the force c1 dy/dt at c1 = 1 of the direct input for a few shapes
 /// ([`BANK_SHAPES`]; c0 / c1 = 0.05, k0 a hundredth of the element's stiffness, Gamma = 0).
-pub fn basis(ctx: &BasisContext) -> BasisBank {
+pub fn basis<'a>(ctx: &BasisContext<'a>) -> BasisBank<'a> {
     let mut bank = BasisBank::new(NAME);
     let u = ctx.inputs[ctx.direct];
     let term = SpencerTerm {
@@ -391,7 +399,7 @@ pub fn basis(ctx: &BasisContext) -> BasisBank {
     for (tau, br) in BANK_SHAPES {
         bank.push(
             format!("spencer(u, pre-yield {tau} samples, B range {br})"),
-            term.column(&theta(0.05, tau, br, 0.0)),
+            term.signal(&theta(0.05, tau, br, 0.0)),
         );
     }
     bank
@@ -441,7 +449,7 @@ impl Effect for SpencerEffect {
             gamma: 0.0,
         }))
     }
-    fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
+    fn basis<'a>(&self, ctx: &BasisContext<'a>) -> Option<BasisBank<'a>> {
         Some(basis(ctx))
     }
     /// A model of a specific device: the refit test tries it only where its bank sees

@@ -96,7 +96,7 @@ pub trait Effect: Send + Sync + 'static {
     // --- diagnosis ---
 
     /// The bank of basis signals, or `None` when it does not apply to the record.
-    fn basis(&self, _ctx: &BasisContext) -> Option<BasisBank> {
+    fn basis<'a>(&self, _ctx: &BasisContext<'a>) -> Option<BasisBank<'a>> {
         None
     }
     /// The share of a residual this effect's bank must explain out of sample before the

@@ -14,7 +14,7 @@
 //! - B. F. Spencer Jr., S. J. Dyke, M. K. Sain, J. D. Carlson, "Phenomenological model for
 //!   magnetorheological dampers", J. Eng. Mech. 123(3):230-238, 1997.
 
-use super::basis::{BasisBank, BasisContext, EvidenceContext};
+use super::basis::{BasisBank, BasisContext, EvidenceContext, Signal};
 use super::feature::{FeatureKind, FeatureSpec};
 use super::fitting::{Column, PathSetup, TermFit, TermSpec};
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
@@ -111,16 +111,30 @@ impl Operator for Rate {
     }
 }
 
-/// First-order low-pass (exact ZOH, unit gain, state 0 at the start) of a signal.
-fn low_pass(x: &[f64], tau: f64, ts: f64) -> Vec<f64> {
-    let a = (-ts / tau).exp();
-    let mut s = 0.0;
-    x.iter()
-        .map(|&v| {
-            s = a * s + (1.0 - a) * v;
-            s
-        })
-        .collect()
+/// First-order low-pass (exact ZOH, unit gain, state 0 at the start), one sample at a time.
+#[derive(Debug, Clone)]
+struct LowPass {
+    a: f64,
+    s: f64,
+}
+
+impl LowPass {
+    fn new(tau: f64, ts: f64) -> LowPass {
+        LowPass {
+            a: (-ts / tau).exp(),
+            s: 0.0,
+        }
+    }
+}
+
+impl Operator for LowPass {
+    fn reset(&mut self) {
+        self.s = 0.0;
+    }
+    fn step(&mut self, v: f64) -> f64 {
+        self.s = self.a * self.s + (1.0 - self.a) * v;
+        self.s
+    }
 }
 
 /// Time constants (in samples) of the bank's low-passed rates.
@@ -129,18 +143,18 @@ pub const BANK_TAUS: [f64; 2] = [5.0, 25.0];
 /// Basis bank: the rate of the direct input and low-passed versions of it ([`BANK_TAUS`]
 /// samples): what a dashpot adds to a model, alone or behind a compliance (a Maxwell element,
 /// spring k in series with dashpot c: force = c du/dt low-passed with tau = c / k).
-pub fn basis(ctx: &BasisContext) -> BasisBank {
+pub fn basis<'a>(ctx: &BasisContext<'a>) -> BasisBank<'a> {
     let mut bank = BasisBank::new(NAME);
     let u = ctx.inputs[ctx.direct];
-    let r = rate(u, ctx.ts);
+    let r = || Signal::samples(u).through(Box::new(Rate::new(ctx.ts)));
     for m in BANK_TAUS {
         let tau = m * ctx.ts;
         bank.push(
             format!("rate(u, low-pass tau={tau:.4} s)"),
-            low_pass(&r, tau, ctx.ts),
+            r().through(Box::new(LowPass::new(tau, ctx.ts))),
         );
     }
-    bank.push("rate(u)".into(), r);
+    bank.push("rate(u)".into(), r());
     bank
 }
 
@@ -213,7 +227,7 @@ impl Effect for ViscousEffect {
     fn example(&self) -> Option<Box<dyn EffectSpec>> {
         Some(Box::new(ViscousSpec { coefficient: 0.003 }))
     }
-    fn basis(&self, ctx: &BasisContext) -> Option<BasisBank> {
+    fn basis<'a>(&self, ctx: &BasisContext<'a>) -> Option<BasisBank<'a>> {
         Some(basis(ctx))
     }
     fn evidence(&self, ctx: &EvidenceContext) -> String {
