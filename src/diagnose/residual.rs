@@ -29,7 +29,11 @@
 //!   nonlinearities of actuators and sensors).
 //! - S. A. Billings, W. S. F. Voon, Int. J. Control 44(1):235-244, 1986 (residual tests).
 
-use super::regression::explained_out_of_sample;
+use super::regression::FoldGrams;
+use crate::effect::basis::Signal;
+use crate::effect::drift::slow_cosine;
+use crate::effect::saturation::{hinge, hinge_levels};
+use crate::effect::Operator;
 use serde::Serialize;
 
 /// Share of the residual a place must explain out of sample to be named.
@@ -121,32 +125,84 @@ pub struct ResidualShape {
 /// For each sample, the direction of motion (+1, -1, or 0 before the first move) and the
 /// input's travel since the last reversal (a move back by more than `hysteresis`).
 pub fn reversal_travel(u: &[f64], hysteresis: f64) -> Vec<(f64, f64)> {
-    let mut out = Vec::with_capacity(u.len());
-    let start = u.first().copied().unwrap_or(0.0);
-    let (mut dir, mut extreme, mut since) = (0.0f64, start, None);
-    for &v in u {
-        if dir == 0.0 {
-            if (v - start).abs() > hysteresis {
-                dir = (v - start).signum();
-                extreme = v;
-            }
-        } else if (v - extreme) * dir > 0.0 {
-            extreme = v;
-        } else if (extreme - v) * dir > hysteresis {
-            // a reversal at the extreme just left
-            since = Some(extreme);
-            dir = -dir;
-            extreme = v;
+    let mut t = ReversalTravel::new(hysteresis);
+    u.iter().map(|&v| t.step(v)).collect()
+}
+
+/// [`reversal_travel`] one sample at a time.
+#[derive(Debug, Clone)]
+pub struct ReversalTravel {
+    hysteresis: f64,
+    /// The first value, the direction of motion, the extreme of the current motion and the
+    /// last reversal.
+    start: Option<f64>,
+    dir: f64,
+    extreme: f64,
+    since: Option<f64>,
+}
+
+impl ReversalTravel {
+    /// At rest before the first sample.
+    pub fn new(hysteresis: f64) -> ReversalTravel {
+        ReversalTravel {
+            hysteresis,
+            start: None,
+            dir: 0.0,
+            extreme: 0.0,
+            since: None,
         }
-        let travel = since.map_or(f64::INFINITY, |r: f64| (v - r).abs());
-        out.push((dir, travel));
     }
-    out
+
+    /// The direction of motion and the travel since the last reversal at the next sample.
+    pub fn step(&mut self, v: f64) -> (f64, f64) {
+        let start = *self.start.get_or_insert_with(|| {
+            self.extreme = v;
+            v
+        });
+        if self.dir == 0.0 {
+            if (v - start).abs() > self.hysteresis {
+                self.dir = (v - start).signum();
+                self.extreme = v;
+            }
+        } else if (v - self.extreme) * self.dir > 0.0 {
+            self.extreme = v;
+        } else if (self.extreme - v) * self.dir > self.hysteresis {
+            // a reversal at the extreme just left
+            self.since = Some(self.extreme);
+            self.dir = -self.dir;
+            self.extreme = v;
+        }
+        let travel = self.since.map_or(f64::INFINITY, |r: f64| (v - r).abs());
+        (self.dir, travel)
+    }
+}
+
+/// One signal of the reversal bank: direction times max(gap - travel, 0), or the direction
+/// alone without a gap.
+#[derive(Debug, Clone)]
+struct ReversalSignal {
+    travel: ReversalTravel,
+    gap: Option<f64>,
+}
+
+impl Operator for ReversalSignal {
+    fn reset(&mut self) {
+        self.travel = ReversalTravel::new(self.travel.hysteresis);
+    }
+    fn step(&mut self, v: f64) -> f64 {
+        let (dir, travel) = self.travel.step(v);
+        self.gap.map_or(dir, |d| dir * (d - travel).max(0.0))
+    }
 }
 
 /// The reversal bank: direction times max(d - travel since the reversal, 0), and the direction
 /// of motion itself (a friction force's sign; the offset of a backlash's output in motion).
 pub fn reversal_bank(u: &[f64]) -> Vec<Vec<f64>> {
+    whole(reversal_signals(u), u.len())
+}
+
+/// [`reversal_bank`]'s signals, computed a block of rows at a time.
+fn reversal_signals(u: &[f64]) -> Vec<Signal<'_>> {
     let range = if u.is_empty() {
         0.0
     } else {
@@ -155,27 +211,40 @@ pub fn reversal_bank(u: &[f64]) -> Vec<Vec<f64>> {
     if range.is_nan() || range <= 0.0 {
         return Vec::new();
     }
-    let motion = reversal_travel(u, REVERSAL_MOVE * range);
-    let mut bank: Vec<Vec<f64>> = REVERSAL_GAPS
+    let travel = ReversalTravel::new(REVERSAL_MOVE * range);
+    REVERSAL_GAPS
         .iter()
-        .map(|g| {
-            let d = g * range;
-            motion
-                .iter()
-                .map(|&(dir, travel)| dir * (d - travel).max(0.0))
-                .collect()
+        .map(|g| Some(g * range))
+        .chain([None])
+        .map(|gap| {
+            let travel = travel.clone();
+            Signal::samples(u).through(Box::new(ReversalSignal { travel, gap }))
         })
-        .collect();
-    bank.push(motion.iter().map(|&(dir, _)| dir).collect());
-    bank
+        .collect()
+}
+
+/// Signals on rows `0..n`, held whole.
+fn whole(signals: Vec<Signal>, n: usize) -> Vec<Vec<f64>> {
+    signals.into_iter().map(|s| s.whole(n)).collect()
 }
 
 /// The bank of `place` for a residual of prediction `yhat` driven by `u` (`n` samples).
 pub fn bank(place: Place, yhat: &[f64], u: &[f64]) -> Vec<Vec<f64>> {
+    whole(signals(place, yhat, u), yhat.len())
+}
+
+/// [`bank`]'s signals, computed a block of rows at a time.
+fn signals<'a>(place: Place, yhat: &'a [f64], u: &'a [f64]) -> Vec<Signal<'a>> {
+    let n = yhat.len();
     match place {
-        Place::Extremes => crate::effect::saturation::hinges(yhat),
-        Place::SlowTrend => crate::effect::drift::slow_cosines(yhat.len(), TREND_COSINES),
-        Place::Reversals => reversal_bank(u),
+        Place::Extremes => hinge_levels(yhat)
+            .into_iter()
+            .map(|h| Signal::of(move |k| hinge(yhat[k], h)))
+            .collect(),
+        Place::SlowTrend => (1..=TREND_COSINES)
+            .map(|k| Signal::of(move |j| slow_cosine(k, j, n)))
+            .collect(),
+        Place::Reversals => reversal_signals(u),
     }
 }
 
@@ -200,17 +269,18 @@ pub fn explained_part(place: Place, e: &[f64], yhat: &[f64], u: &[f64]) -> Optio
 /// Where the residual `e` of prediction `yhat` (driven by input `u`) concentrates; `white`:
 /// the residual passed the correlation tests (then nothing is described).
 pub fn describe(e: &[f64], yhat: &[f64], u: &[f64], white: bool) -> ResidualShape {
-    let base: &[&[f64]] = &[yhat];
-    // one place's bank at a time (a long record's banks are not held together)
+    // one place's bank at a time, its signals a block of rows at a time (columns: the bank,
+    // then the prediction)
     let mut shares: Vec<PlaceShare> = Place::ALL
         .iter()
         .filter_map(|&place| {
-            let bank = bank(place, yhat, u);
+            let mut cols = signals(place, yhat, u);
+            let bank: Vec<usize> = (0..cols.len()).collect();
             if bank.is_empty() {
                 return None;
             }
-            let cols: Vec<&[f64]> = bank.iter().map(Vec::as_slice).collect();
-            let x = explained_out_of_sample(e, &[base], &cols)?;
+            cols.push(Signal::samples(yhat));
+            let x = FoldGrams::new(e, &mut cols).explained(&[&[bank.len()]], &bank)?;
             Some(PlaceShare {
                 place,
                 explained: x.fraction,
