@@ -366,11 +366,11 @@ impl Banks {
     }
 
     /// The columns of `effect`'s bank, if it has one.
-    fn of(&self, effect: EffectName) -> Option<Vec<usize>> {
+    fn of(&self, effect: EffectName) -> Option<Range<usize>> {
         self.columns
             .iter()
             .find(|(n, _)| *n == effect)
-            .map(|(_, r)| r.clone().collect())
+            .map(|(_, r)| r.clone())
     }
 
     /// Number of signals in `effect`'s bank.
@@ -430,7 +430,7 @@ fn simpler_effect(
         .filter(|s| banks.size(s.effect).is_some_and(|n| n < top_size))
         .collect();
     cands.sort_by_key(|s| banks.size(s.effect).unwrap_or(usize::MAX));
-    let top_cols = banks.of(m)?;
+    let top_cols: Vec<usize> = banks.of(m)?.collect();
     for c in cands {
         let Some(cb) = banks.of(c.effect) else {
             continue;

@@ -30,40 +30,8 @@ pub struct Explained {
 /// record gives blocks of 1,250 samples).
 pub const BLOCKS: usize = 32;
 
-/// Two-fold blocked cross-validation: the record is cut in [`BLOCKS`] contiguous blocks, the
-/// even ones fit and the odd ones score, then the reverse; sums of squares are pooled. Blocks
-/// keep the time structure while both folds see the whole experiment (a record that starts with
-/// a rest and ends with motion is fitted on both).
-///
-/// Each baseline (e.g. the prediction alone, or the prediction and the banks of the effects a
-/// model has; a constant is always in) is a regression of the residual; the reference is the
-/// best of them on held-out rows, or the residual itself when every baseline regression does
-/// worse out of sample than no correction (it extrapolates badly, e.g. from a rest to motion).
-/// The bank is added to each baseline and the best held-out result is compared with the
-/// reference: a bank is credited only with what it explains beyond everything already there.
-///
-/// Whole columns; [`FoldGrams`] does the same from signals computed a block at a time.
-pub fn explained_out_of_sample(
-    residual: &[f64],
-    baselines: &[&[&[f64]]],
-    bank: &[&[f64]],
-) -> Option<Explained> {
-    // the bank's columns, then each baseline's
-    let mut cols: Vec<&[f64]> = bank.to_vec();
-    let mut sets = Vec::new();
-    for base in baselines {
-        sets.push((cols.len()..cols.len() + base.len()).collect::<Vec<usize>>());
-        cols.extend_from_slice(base);
-    }
-    let mut signals: Vec<Signal> = cols.iter().map(|c| Signal::samples(c)).collect();
-    let grams = FoldGrams::new(residual, &mut signals);
-    let sets: Vec<&[usize]> = sets.iter().map(Vec::as_slice).collect();
-    let bank: Vec<usize> = (0..bank.len()).collect();
-    grams.explained(&sets, &bank)
-}
-
-/// The normal equations of the two folds of [`explained_out_of_sample`] for a set of signals
-/// and a residual: the cross products of `[signals, residual, 1]` over each fold's rows,
+/// The normal equations of the two folds of the blocked cross-validation
+/// ([`FoldGrams::explained`]) for a set of signals and a residual: the cross products of `[signals, residual, 1]` over each fold's rows,
 /// accumulated a block of rows at a time, so that no signal is held whole. Every regression on
 /// a subset of the signals (plus a constant) and its held-out sum of squares then come from
 /// these two small matrices: one pass over the record serves every bank and baseline.
@@ -188,8 +156,19 @@ impl FoldGrams {
         Some(sse)
     }
 
-    /// [`explained_out_of_sample`] of the bank `bank` on top of the baselines `baselines` (each
-    /// a set of signal indices).
+    /// Two-fold blocked cross-validation of the bank `bank` on top of the baselines `baselines`
+    /// (each a set of signal indices): the record is cut in [`BLOCKS`] contiguous blocks, the
+    /// even ones fit and the odd ones score, then the reverse; sums of squares are pooled.
+    /// Blocks keep the time structure while both folds see the whole experiment (a record that
+    /// starts with a rest and ends with motion is fitted on both).
+    ///
+    /// Each baseline (e.g. the prediction alone, or the prediction and the banks of the effects
+    /// a model has; a constant is always in) is a regression of the residual; the reference is
+    /// the best of them on held-out rows, or the residual itself when every baseline regression
+    /// does worse out of sample than no correction (it extrapolates badly, e.g. from a rest to
+    /// motion). The bank is added to each baseline and the best held-out result is compared
+    /// with the reference: a bank is credited only with what it explains beyond everything
+    /// already there.
     pub fn explained(&self, baselines: &[&[usize]], bank: &[usize]) -> Option<Explained> {
         let mut reference = self.raw_sse;
         let mut with_bank = f64::INFINITY;
@@ -287,6 +266,26 @@ mod tests {
         let noise = e.len() as f64 * 0.05f64.powi(2);
         let got = grams.held_out_sse(&[1, 4]).unwrap();
         assert!((got / noise - 1.0).abs() < 0.05, "{got} against {noise}");
+    }
+
+    /// [`FoldGrams::explained`] of whole columns.
+    fn explained_out_of_sample(
+        residual: &[f64],
+        baselines: &[&[&[f64]]],
+        bank: &[&[f64]],
+    ) -> Option<Explained> {
+        // the bank's columns, then each baseline's
+        let mut cols: Vec<&[f64]> = bank.to_vec();
+        let mut sets = Vec::new();
+        for base in baselines {
+            sets.push((cols.len()..cols.len() + base.len()).collect::<Vec<usize>>());
+            cols.extend_from_slice(base);
+        }
+        let mut signals: Vec<Signal> = cols.iter().map(|c| Signal::samples(c)).collect();
+        let grams = FoldGrams::new(residual, &mut signals);
+        let sets: Vec<&[usize]> = sets.iter().map(Vec::as_slice).collect();
+        let bank: Vec<usize> = (0..bank.len()).collect();
+        grams.explained(&sets, &bank)
     }
 
     #[test]

@@ -10,7 +10,7 @@
 //!   a dead zone, stick-slip friction.
 //!
 //! Each place is a small bank of signals nonzero only there, regressed on the residual with the
-//! diagnosis' blocked cross-validation ([`super::regression::explained_out_of_sample`]) on top
+//! diagnosis' blocked cross-validation ([`super::regression::FoldGrams::explained`]) on top
 //! of the prediction and a constant: the place that explains the largest share out of sample,
 //! when it explains at least [`DESCRIBED`], is where the residual concentrates.
 //! - extremes: hinges of the prediction beyond its 3, 10, 90 and 97 % quantiles,
@@ -197,11 +197,6 @@ impl Operator for ReversalSignal {
 
 /// The reversal bank: direction times max(d - travel since the reversal, 0), and the direction
 /// of motion itself (a friction force's sign; the offset of a backlash's output in motion).
-pub fn reversal_bank(u: &[f64]) -> Vec<Vec<f64>> {
-    whole(reversal_signals(u), u.len())
-}
-
-/// [`reversal_bank`]'s signals, computed a block of rows at a time.
 fn reversal_signals(u: &[f64]) -> Vec<Signal<'_>> {
     let range = if u.is_empty() {
         0.0
@@ -223,14 +218,13 @@ fn reversal_signals(u: &[f64]) -> Vec<Signal<'_>> {
         .collect()
 }
 
-/// Signals on rows `0..n`, held whole.
-fn whole(signals: Vec<Signal>, n: usize) -> Vec<Vec<f64>> {
-    signals.into_iter().map(|s| s.whole(n)).collect()
-}
-
-/// The bank of `place` for a residual of prediction `yhat` driven by `u` (`n` samples).
+/// The bank of `place` for a residual of prediction `yhat` driven by `u`, held whole.
 pub fn bank(place: Place, yhat: &[f64], u: &[f64]) -> Vec<Vec<f64>> {
-    whole(signals(place, yhat, u), yhat.len())
+    let n = yhat.len();
+    signals(place, yhat, u)
+        .into_iter()
+        .map(|s| s.whole(n))
+        .collect()
 }
 
 /// [`bank`]'s signals, computed a block of rows at a time.

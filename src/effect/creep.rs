@@ -179,12 +179,7 @@ impl Operator for CreepOp {
 }
 
 /// One Kelvin-Voigt state (a first-order lag of time constant `tau`, exact under a zero-order
-/// hold, starting at the first sample's value).
-pub fn kelvin_voigt_state(x: &[f64], tau: f64, ts: f64) -> Vec<f64> {
-    KelvinVoigtState::new(tau, ts).apply(x)
-}
-
-/// [`kelvin_voigt_state`] one sample at a time.
+/// hold, starting at the first sample's value), one sample at a time.
 #[derive(Debug, Clone)]
 pub struct KelvinVoigtState {
     a: f64,

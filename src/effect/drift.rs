@@ -145,15 +145,8 @@ impl Params for Drift {
 /// Cosines of time in the diagnosis bank (the slowest has a period of twice the record).
 pub const BANK_COSINES: usize = 6;
 
-/// Slow cosines of time over `n` samples: cos(pi k (j + 1/2) / n), k = 1..=`count`: what a
-/// slow trend adds to a residual, whatever its shape.
-pub fn slow_cosines(n: usize, count: usize) -> Vec<Vec<f64>> {
-    (1..=count)
-        .map(|k| (0..n).map(|j| slow_cosine(k, j, n)).collect())
-        .collect()
-}
-
-/// Sample `j` of the `k`-th of [`slow_cosines`] over `n` samples.
+/// Sample `j` of the `k`-th slow cosine of time over `n` samples, cos(pi k (j + 1/2) / n): the
+/// first few are what a slow trend adds to a residual, whatever its shape.
 pub fn slow_cosine(k: usize, j: usize, n: usize) -> f64 {
     (std::f64::consts::PI * k as f64 * (j as f64 + 0.5) / n as f64).cos()
 }

@@ -46,14 +46,6 @@ impl Operator for Play {
     }
 }
 
-/// The outputs of plays with the given thresholds (state 0 at the start) on a whole signal.
-pub fn play_bank(u: &[f64], thresholds: &[f64]) -> Vec<Vec<f64>> {
-    thresholds
-        .iter()
-        .map(|&r| Play::new(r, 0.0).apply(u))
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -103,16 +103,9 @@ impl Params for Saturation {
     }
 }
 
-/// Hinges of a prediction beyond its 3, 10, 90 and 97 % quantiles, max(y_hat - q, 0) and
-/// min(y_hat - q, 0): what clipping the top or the bottom of a model's output takes away.
-pub fn hinges(prediction: &[f64]) -> Vec<Vec<f64>> {
-    hinge_levels(prediction)
-        .into_iter()
-        .map(|h| prediction.iter().map(|&v| hinge(v, h)).collect())
-        .collect()
-}
-
-/// The levels of [`hinges`], in their order: (level, above) at the 90 % quantile above, the
+/// The levels of the hinges of a prediction beyond its 3, 10, 90 and 97 % quantiles
+/// ([`hinge`]: max(y_hat - q, 0) and min(y_hat - q, 0), what clipping the top or the bottom of
+/// a model's output takes away), in their order: (level, above) at the 90 % quantile above, the
 /// 10 % below, then the 97 % above and the 3 % below.
 pub fn hinge_levels(prediction: &[f64]) -> Vec<(f64, bool)> {
     let mut s: Vec<f64> = prediction
@@ -130,7 +123,7 @@ pub fn hinge_levels(prediction: &[f64]) -> Vec<(f64, bool)> {
         .collect()
 }
 
-/// One hinge of [`hinges`] at a value of the prediction.
+/// One hinge of [`hinge_levels`] at a value of the prediction.
 pub fn hinge(v: f64, (level, above): (f64, bool)) -> f64 {
     if above {
         (v - level).max(0.0)
