@@ -33,14 +33,9 @@ fn fit_problem(
     let stage1 = prob.first_stage();
     let t1 = Instant::now();
     let side = (SIDE_BY_SIDE_BYTES / prob.run_bytes().max(1)).max(1);
-    let mut runs: Vec<Result<LmResult, GreyBoxError>> = Vec::new();
-    for group in starts.chunks(side) {
-        runs.par_extend(
-            group
-                .par_iter()
-                .map(|th0| levenberg_marquardt(prob, th0.clone(), &stage1, options)),
-        );
-    }
+    let runs = side_by_side(starts, side, |th0| {
+        levenberg_marquardt(prob, th0, &stage1, options)
+    });
     let mut best: Option<LmResult> = None;
     let mut iterations = 0;
     for r in runs {
@@ -82,11 +77,48 @@ fn fit_problem(
     Ok(res)
 }
 
+/// `job` on every item, at most `side` at a time on the threads (each thread that is free
+/// takes the next item), the results in the items' order.
+fn side_by_side<T: Send, R: Send>(
+    items: Vec<T>,
+    side: usize,
+    job: impl Fn(T) -> R + Sync,
+) -> Vec<R> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::Mutex;
+    let n = items.len();
+    let items: Vec<Mutex<Option<T>>> = items.into_iter().map(|t| Mutex::new(Some(t))).collect();
+    let results: Vec<Mutex<Option<R>>> = (0..n).map(|_| Mutex::new(None)).collect();
+    let next = AtomicUsize::new(0);
+    let worker = || loop {
+        let i = next.fetch_add(1, Ordering::Relaxed);
+        let Some(item) = items.get(i).and_then(|m| m.lock().ok()?.take()) else {
+            break;
+        };
+        let r = job(item);
+        if let Ok(mut slot) = results[i].lock() {
+            *slot = Some(r);
+        }
+    };
+    rayon::scope(|s| {
+        for _ in 1..side.min(n) {
+            s.spawn(|_| worker());
+        }
+        worker();
+    });
+    results
+        .into_iter()
+        .map(|m| m.into_inner().ok().flatten().expect("every item was run"))
+        .collect()
+}
+
 /// The memory that the starts of a fit run side by side may hold together (beyond the
-/// record; [`OutputProblem::run_bytes`] each): on a long record they run one after the other
-/// (a 200,000-sample fit with three paths' terms holds about 100 MB per run, a 2,000,000-sample
-/// one streamed about 250 MB).
-pub const SIDE_BY_SIDE_BYTES: usize = 1 << 30;
+/// record; [`OutputProblem::run_bytes`] each): fewer at a time on a longer record, one
+/// after the other on a long one (`fit --effects hysteresis,creep,dynamics` holds about 100 MB
+/// per run at 200,000 samples: two at a time; 145 MB at 300,000 and 210-260 MB streamed at
+/// 2,000,000: one), so that a long record's fit, and a diagnosis's refits, keep the memory of
+/// one run (under 1 GB at 2,000,000 samples).
+pub const SIDE_BY_SIDE_BYTES: usize = 256 << 20;
 
 /// The number of samples a fit on the first `fraction` of `n` samples uses.
 pub fn train_samples(n: usize, fraction: f64) -> usize {
@@ -998,6 +1030,22 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Side by side, however many at a time, the results come in the items' order, each
+    /// item run once.
+    #[test]
+    fn side_by_side_keeps_the_order() {
+        let items: Vec<u64> = (0..9).collect();
+        for side in [1, 2, 3, 20] {
+            let out = side_by_side(items.clone(), side, |i| {
+                // later items finish first
+                std::thread::sleep(std::time::Duration::from_millis(9 - i));
+                i * i
+            });
+            assert_eq!(out, items.iter().map(|i| i * i).collect::<Vec<_>>(), "{side}");
+        }
+        assert!(side_by_side(Vec::<u64>::new(), 2, |i| i).is_empty());
     }
 
     /// A fit's starts run side by side give the same model, bit for bit, at one, two and
