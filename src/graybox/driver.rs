@@ -1006,32 +1006,6 @@ mod tests {
         (prob, th)
     }
 
-    /// The cost from the normal equations alone (one pass) is the evaluation's (the residual
-    /// summed) to rounding, with and without the dynamics, the ridge and a held-out stretch.
-    #[test]
-    fn the_cost_from_the_normal_equations_is_the_evaluations() {
-        let n = 3 * crate::numeric::gram::BLOCK_ROWS;
-        let rec = record(1, n);
-        for effects in ["hysteresis,creep,dynamics", "bouc-wen,dynamics"] {
-            let th = problem_at(&rec, effects, Some(n / 3..n / 2)).1;
-            for ridge in [0.0, 0.1] {
-                let prob = problem_at(&rec, effects, Some(n / 3..n / 2))
-                    .0
-                    .with_ridge(ridge);
-                for with_dynamics in [true, false] {
-                    let ev = prob.eval(&th, with_dynamics).expect("a finite model");
-                    let c = prob.cost_at(&th, with_dynamics).expect("a finite cost");
-                    let energy: f64 = rec.outputs[0].values.iter().map(|v| v * v).sum();
-                    assert!(
-                        (c - ev.cost).abs() <= 1e-12 * energy,
-                        "{effects}, ridge {ridge}, dynamics {with_dynamics}: {c:e} vs {:e}",
-                        ev.cost
-                    );
-                }
-            }
-        }
-    }
-
     /// Side by side, however many at a time, the results come in the items' order, each
     /// item run once.
     #[test]
@@ -1043,7 +1017,11 @@ mod tests {
                 std::thread::sleep(std::time::Duration::from_millis(9 - i));
                 i * i
             });
-            assert_eq!(out, items.iter().map(|i| i * i).collect::<Vec<_>>(), "{side}");
+            assert_eq!(
+                out,
+                items.iter().map(|i| i * i).collect::<Vec<_>>(),
+                "{side}"
+            );
         }
         assert!(side_by_side(Vec::<u64>::new(), 2, |i| i).is_empty());
     }

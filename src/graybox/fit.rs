@@ -805,20 +805,14 @@ impl<'a> OutputProblem<'a> {
         (cols, cons)
     }
 
-    /// The normal equations `[Psi | y]^T [Psi | y]` at `th` by row blocks (mirrored whole), which
-    /// columns must have c >= 0, and the filtered basis when `keep` is set and it was held
-    /// whole.
-    fn normal_equations_at(
-        &self,
-        th: &[f64],
-        with_dynamics: bool,
-        keep: bool,
-    ) -> (DMatrix<f64>, Vec<bool>, Option<Vec<Vec<f64>>>) {
+    /// Evaluate: basis through the filters, (non-negative) least squares, residual.
+    /// `with_dynamics = false` evaluates the static model (initialisation).
+    pub fn eval(&self, th: &[f64], with_dynamics: bool) -> Option<Eval> {
         let m = self.layout.n_cols;
         let what = Columns::Filtered { with_dynamics };
-        // the upper triangle, by row blocks
+        // the normal equations [Psi | y]^T [Psi | y], the upper triangle, by row blocks
         let mut sum = gram::ChunkSum::new(m + 1, m + 1);
-        let (cons, held) = self.stream(th, what, None, keep, |rows, psi| {
+        let (cons, held) = self.stream(th, what, None, true, |rows, psi| {
             let mut all = psi.to_vec();
             all.push(&self.y[rows.clone()]);
             sum.add(gram::chunk_sums(rows.len(), m + 1, m + 1, |r| {
@@ -828,18 +822,6 @@ impl<'a> OutputProblem<'a> {
         });
         let mut x = sum.total();
         gram::mirror_upper(&mut x);
-        (x, cons, held)
-    }
-
-    /// The linear coefficients from the normal equations `x` (the ridge on the terms'
-    /// columns, `cons` non-negative); `None` when they are not finite. Also which columns the
-    /// ridge weighs and their energies.
-    fn solve_linear(
-        &self,
-        x: &DMatrix<f64>,
-        cons: &[bool],
-    ) -> Option<(NnlsSolution, Vec<bool>, Vec<f64>)> {
-        let m = self.layout.n_cols;
         let mut g = x.view((0, 0), (m, m)).into_owned();
         let b = x.view((0, m), (m, 1)).column(0).into_owned();
         if g.iter().any(|v| !v.is_finite()) || b.iter().any(|v| !v.is_finite()) {
@@ -854,38 +836,7 @@ impl<'a> OutputProblem<'a> {
         for (i, _) in penalised.iter().enumerate().filter(|(_, p)| **p) {
             g[(i, i)] += self.ridge * energy[i];
         }
-        Some((nnls_gram(&g, &b, cons), penalised, energy))
-    }
-
-    /// The cost of [`OutputProblem::eval`] from the normal equations alone, in one pass over
-    /// the record: `(y'y - 2 c'b + c'Gc) / 2` plus the ridge's penalty. Its rounding error is
-    /// that of `y'y` (about 1e-16 of it), so it ranks points whose costs differ by more (a
-    /// grid of starting points), without the residual's second pass.
-    pub fn cost_at(&self, th: &[f64], with_dynamics: bool) -> Option<f64> {
-        let m = self.layout.n_cols;
-        let (x, cons, _) = self.normal_equations_at(th, with_dynamics, false);
-        let (sol, penalised, energy) = self.solve_linear(&x, &cons)?;
-        let c = &sol.coef;
-        let mut fit = 0.0;
-        for i in (0..m).filter(|&i| c[i] != 0.0) {
-            let gi: f64 = (0..m).map(|j| x[(i, j)] * c[j]).sum();
-            fit += c[i] * (gi - 2.0 * x[(i, m)]);
-        }
-        let penalty: f64 = (0..m)
-            .filter(|&i| penalised[i])
-            .map(|i| self.ridge * energy[i] * c[i] * c[i])
-            .sum();
-        let cost = 0.5 * (x[(m, m)] + fit + penalty);
-        cost.is_finite().then_some(cost.max(0.0))
-    }
-
-    /// Evaluate: basis through the filters, (non-negative) least squares, residual.
-    /// `with_dynamics = false` evaluates the static model (initialisation).
-    pub fn eval(&self, th: &[f64], with_dynamics: bool) -> Option<Eval> {
-        let m = self.layout.n_cols;
-        let what = Columns::Filtered { with_dynamics };
-        let (x, cons, held) = self.normal_equations_at(th, with_dynamics, true);
-        let (sol, penalised, energy) = self.solve_linear(&x, &cons)?;
+        let sol = nnls_gram(&g, &b, &cons);
         // the residual, the columns subtracted in order (from the columns held, or a second
         // pass over the record)
         let used: Vec<usize> = (0..m).filter(|&i| sol.coef[i] != 0.0).collect();
@@ -1398,9 +1349,9 @@ impl<'a> OutputProblem<'a> {
             for i in 0..points {
                 let mut t = th.clone();
                 set(&mut t, i);
-                if let Some(cost) = self.cost_at(&t, false) {
-                    if cost < best.0 {
-                        best = (cost, Some(i));
+                if let Some(e) = self.eval(&t, false) {
+                    if e.cost < best.0 {
+                        best = (e.cost, Some(i));
                     }
                 }
             }
@@ -1416,7 +1367,11 @@ impl<'a> OutputProblem<'a> {
                 t[at.clone()].copy_from_slice(local);
                 t
             };
-            let cost = |local: &[f64]| coarse.cost_at(&with(local), true).unwrap_or(f64::INFINITY);
+            let cost = |local: &[f64]| {
+                coarse
+                    .eval(&with(local), true)
+                    .map_or(f64::INFINITY, |e| e.cost)
+            };
             if let Some(list) = f.filter.starts(&th[at.clone()], &cost, starts) {
                 return list.iter().map(|local| with(local)).collect();
             }
