@@ -32,9 +32,10 @@ fn fit_problem(
     starts.extend(extra);
     let stage1 = prob.first_stage();
     let t1 = Instant::now();
-    let side = (SIDE_BY_SIDE_BYTES / prob.run_bytes().max(1)).max(1);
-    let runs = side_by_side(starts, side, |th0| {
-        levenberg_marquardt(prob, th0, &stage1, options)
+    let run_bytes = prob.run_bytes();
+    let side = (SIDE_BY_SIDE_BYTES / run_bytes.max(1)).max(1);
+    let runs = side_by_side(starts.len(), side, |i| {
+        levenberg_marquardt(prob, starts[i].clone(), &stage1, options)
     });
     let mut best: Option<LmResult> = None;
     let mut iterations = 0;
@@ -55,7 +56,7 @@ fn fit_problem(
         eprintln!(
             "starts run: {:.2} s ({} MB a run, {side} side by side)",
             t1.elapsed().as_secs_f64(),
-            prob.run_bytes() >> 20
+            run_bytes >> 20
         );
     }
     let mut res = best.expect("at least one start");
@@ -77,28 +78,20 @@ fn fit_problem(
     Ok(res)
 }
 
-/// `job` on every item, at most `side` at a time on the threads (each thread that is free
-/// takes the next item), the results in the items' order.
-fn side_by_side<T: Send, R: Send>(
-    items: Vec<T>,
-    side: usize,
-    job: impl Fn(T) -> R + Sync,
-) -> Vec<R> {
+/// `job(i)` for every `i` below `n`, at most `side` at a time on the threads (each thread that
+/// is free takes the next `i`), the results in the order of `i`.
+fn side_by_side<R: Send>(n: usize, side: usize, job: impl Fn(usize) -> R + Sync) -> Vec<R> {
     use std::sync::atomic::{AtomicUsize, Ordering};
     use std::sync::Mutex;
-    let n = items.len();
-    let items: Vec<Mutex<Option<T>>> = items.into_iter().map(|t| Mutex::new(Some(t))).collect();
     let results: Vec<Mutex<Option<R>>> = (0..n).map(|_| Mutex::new(None)).collect();
     let next = AtomicUsize::new(0);
     let worker = || loop {
         let i = next.fetch_add(1, Ordering::Relaxed);
-        let Some(item) = items.get(i).and_then(|m| m.lock().ok()?.take()) else {
+        let Some(slot) = results.get(i) else {
             break;
         };
-        let r = job(item);
-        if let Ok(mut slot) = results[i].lock() {
-            *slot = Some(r);
-        }
+        let r = job(i);
+        *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(r);
     };
     rayon::scope(|s| {
         for _ in 1..side.min(n) {
@@ -108,7 +101,11 @@ fn side_by_side<T: Send, R: Send>(
     });
     results
         .into_iter()
-        .map(|m| m.into_inner().ok().flatten().expect("every item was run"))
+        .map(|m| {
+            m.into_inner()
+                .unwrap_or_else(|e| e.into_inner())
+                .expect("every item was run")
+        })
         .collect()
 }
 
@@ -1010,20 +1007,15 @@ mod tests {
     /// item run once.
     #[test]
     fn side_by_side_keeps_the_order() {
-        let items: Vec<u64> = (0..9).collect();
         for side in [1, 2, 3, 20] {
-            let out = side_by_side(items.clone(), side, |i| {
+            let out = side_by_side(9, side, |i| {
                 // later items finish first
-                std::thread::sleep(std::time::Duration::from_millis(9 - i));
+                std::thread::sleep(std::time::Duration::from_millis(9 - i as u64));
                 i * i
             });
-            assert_eq!(
-                out,
-                items.iter().map(|i| i * i).collect::<Vec<_>>(),
-                "{side}"
-            );
+            assert_eq!(out, (0..9).map(|i| i * i).collect::<Vec<_>>(), "{side}");
         }
-        assert!(side_by_side(Vec::<u64>::new(), 2, |i| i).is_empty());
+        assert!(side_by_side(0, 2, |i| i).is_empty());
     }
 
     /// A fit's starts run side by side give the same model, bit for bit, at one, two and
