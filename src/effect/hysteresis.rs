@@ -732,6 +732,16 @@ struct OutputMapTerm<'a> {
     bw: Option<f64>,
     /// S'(z) per sample at the last (weights, slopes) asked: every weight's derivative uses it.
     slope: std::sync::Mutex<Option<SlopeAt>>,
+    /// The samples the fit sees (a cross-validation's held-out block left out).
+    held_out: Option<Range<usize>>,
+    /// The intervals' slopes tied ([`OutputMapTerm::ties_of`]) at the last weights asked.
+    ties: std::sync::Mutex<Option<TiesAt>>,
+}
+
+/// The intervals' ties of the dead-zone map at the operator weights that gave them.
+struct TiesAt {
+    weights: Vec<f64>,
+    ties: std::sync::Arc<Vec<usize>>,
 }
 
 /// The slope S'(z[k]) of the dead-zone map at each sample, for the operator weights and
@@ -748,6 +758,14 @@ const Z_ROWS: usize = 1 << 16;
 /// The slopes of S below the smallest slope kept (relative to its steepest slope): the
 /// dead-zone map must increase strictly.
 const MIN_RELATIVE_SLOPE: f64 = 1e-6;
+
+/// The fewest fitted samples of the operator's output z inside an interval of S for the
+/// interval's slope to be fitted; an interval with fewer takes the slope of its neighbour
+/// nearer to 0 ([`OutputMapTerm::ties_of`]). The operator's weights move z while the map is
+/// fitted, and a slope fixed by the few samples that poke into an interval is free to take any
+/// value there (a 2-DoF member of development zoo seed 25: a slope 10^6 times the others on an
+/// interval two samples entered, the fitted free run R^2 0.99997, the model's -2.1).
+pub const MAP_INTERVAL_SAMPLES: usize = 10;
 
 impl<'a> OutputMapTerm<'a> {
     fn new(
@@ -792,6 +810,8 @@ impl<'a> OutputMapTerm<'a> {
             knots,
             bw: (setup.variant == 0 && setup.sign > 0.0).then_some(range),
             slope: std::sync::Mutex::new(None),
+            held_out: setup.held_out.clone(),
+            ties: std::sync::Mutex::new(None),
         })
     }
 
@@ -892,19 +912,83 @@ impl<'a> OutputMapTerm<'a> {
     }
 
     /// The map's columns S_j(z) - S_j(0) of the operator's output `z` where `wanted`, into
-    /// `out`.
-    fn map_columns(&self, z: &[f64], out: &mut [Vec<f64>], wanted: &[bool]) {
-        for (((a, b), o), _) in self
-            .bounds()
-            .into_iter()
-            .zip(out.iter_mut())
-            .zip(wanted)
-            .filter(|(_, w)| **w)
-        {
-            let at0 = 0.0f64.clamp(a, b);
+    /// `out`; an interval tied to another (`ties`) adds its column to that one's and has none.
+    fn map_columns(&self, z: &[f64], out: &mut [Vec<f64>], wanted: &[bool], ties: &[usize]) {
+        for (o, _) in out.iter_mut().zip(wanted).filter(|(_, w)| **w) {
             o.clear();
-            o.extend(z.iter().map(|&v| v.clamp(a, b) - at0));
+            o.resize(z.len(), 0.0);
         }
+        for (j, (a, b)) in self.bounds().into_iter().enumerate() {
+            let r = ties[j];
+            if !wanted[r] {
+                continue;
+            }
+            let at0 = 0.0f64.clamp(a, b);
+            for (o, &v) in out[r].iter_mut().zip(z) {
+                *o += v.clamp(a, b) - at0;
+            }
+        }
+    }
+
+    /// Per interval of S, the interval whose slope it takes: itself where at least
+    /// [`MAP_INTERVAL_SAMPLES`] fitted samples of `z` lie inside it, else its neighbour's
+    /// nearer to 0 (that neighbour's own, in turn); the interval around 0 always its own.
+    fn ties_of(&self, z: &[f64]) -> Vec<usize> {
+        let bounds = self.bounds();
+        let mut count = vec![0usize; bounds.len()];
+        for (k, &v) in z.iter().enumerate() {
+            if self.held_out.as_ref().is_some_and(|r| r.contains(&k)) {
+                continue;
+            }
+            let i = self.knots.partition_point(|&d| d < v);
+            if bounds[i].0 < v && v < bounds[i].1 {
+                count[i] += 1;
+            }
+        }
+        let mid = self.knots.iter().take_while(|&&d| d < 0.0).count();
+        let mut ties: Vec<usize> = (0..bounds.len()).collect();
+        for j in mid + 1..bounds.len() {
+            if count[j] < MAP_INTERVAL_SAMPLES {
+                ties[j] = ties[j - 1];
+            }
+        }
+        for j in (0..mid).rev() {
+            if count[j] < MAP_INTERVAL_SAMPLES {
+                ties[j] = ties[j + 1];
+            }
+        }
+        ties
+    }
+
+    /// [`OutputMapTerm::ties_of`] the operator's output at weights `w` (cached).
+    fn ties_at(&self, w: &[f64]) -> std::sync::Arc<Vec<usize>> {
+        self.ties_with(w, None)
+    }
+
+    /// [`OutputMapTerm::ties_at`], from the operator's output `z` at `w` where it is at hand.
+    fn ties_with(&self, w: &[f64], z: Option<&[f64]>) -> std::sync::Arc<Vec<usize>> {
+        {
+            let cache = self.ties.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some(c) = cache.as_ref() {
+                if c.weights == w {
+                    return c.ties.clone();
+                }
+            }
+        }
+        let t = std::sync::Arc::new(match z {
+            Some(z) => self.ties_of(z),
+            None => self.ties_of(&self.z(w)),
+        });
+        *self.ties.lock().unwrap_or_else(|e| e.into_inner()) = Some(TiesAt {
+            weights: w.to_vec(),
+            ties: t.clone(),
+        });
+        t
+    }
+
+    /// The slopes of the intervals, those of the tied ones taken from their neighbours.
+    fn tied(s: &[f64], ties: &[usize]) -> Vec<f64> {
+        ties.iter().map(|&r| s[r]).collect()
     }
 
     /// The intervals of S: (-inf, d_1], [d_1, d_2], ..., [d_k, inf).
@@ -952,7 +1036,8 @@ impl<'a> OutputMapTerm<'a> {
         }
         let z = self.z(w);
         let bounds = self.bounds();
-        let at: Vec<f64> = z.iter().map(|&v| self.slope_of(&bounds, s, v)).collect();
+        let s = Self::tied(s, &self.ties_with(w, Some(&z)));
+        let at: Vec<f64> = z.iter().map(|&v| self.slope_of(&bounds, &s, v)).collect();
         let at = std::sync::Arc::new(at);
         *cache = Some(SlopeAt {
             weights: w.to_vec(),
@@ -1019,10 +1104,11 @@ impl TermFit for OutputMapTerm<'_> {
             .collect()
     }
     fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>> {
-        let z = self.z(self.weights_of(th));
+        let w = self.weights_of(th);
+        let z = self.z(w);
         let m = self.knots.len() + 1;
         let mut out = vec![Vec::new(); m];
-        self.map_columns(&z, &mut out, &vec![true; m]);
+        self.map_columns(&z, &mut out, &vec![true; m], &self.ties_at(w));
         let mut cols: Vec<Column<'s>> = out.into_iter().map(|c| (Cow::Owned(c), true)).collect();
         if let Some(range) = self.bw {
             let c = bw_memoized(self.u, range, &th[..2], &self.bw_memo);
@@ -1045,8 +1131,9 @@ impl TermFit for OutputMapTerm<'_> {
         let m = self.knots.len() + 1;
         if wanted[..m].iter().any(|w| *w) {
             let w = self.weights_of(th);
+            let ties = self.ties_at(w);
             let z = self.z_block(w, rows.clone(), &mut state.carry, &mut state.scratch);
-            self.map_columns(&z, &mut out[..m], &wanted[..m]);
+            self.map_columns(&z, &mut out[..m], &wanted[..m], &ties);
         }
         if let (Some(range), Some(o), Some(true)) = (self.bw, out.get_mut(m), wanted.get(m)) {
             let c = bw_memoized(self.u, range, &th[..2], &self.bw_memo);
@@ -1103,8 +1190,8 @@ impl TermFit for OutputMapTerm<'_> {
         let x = self.x_block(rows.clone(), carry, scratch, &wanted, true);
         let z = self.z_of(w, rows.clone(), &x);
         let bounds = self.bounds();
-        let s = &coef[..self.knots.len() + 1];
-        let slope: Vec<f64> = z.iter().map(|&v| self.slope_of(&bounds, s, v)).collect();
+        let s = Self::tied(&coef[..self.knots.len() + 1], &self.ties_at(w));
+        let slope: Vec<f64> = z.iter().map(|&v| self.slope_of(&bounds, &s, v)).collect();
         for (o, &q) in out.iter_mut().zip(qs) {
             let xq = if q == nbw {
                 &self.u[rows.clone()]
@@ -1129,8 +1216,9 @@ impl TermFit for OutputMapTerm<'_> {
                 *v += t;
             }
         }
+        let slopes = Self::tied(&coef[..m], &self.ties_at(w));
         let spec = PrandtlIshlinskiiSpec {
-            dead_zones: Some(self.dead_zones(&coef[..m])),
+            dead_zones: Some(self.dead_zones(&slopes)),
             ..pi
         };
         let mut extra_paths: Vec<Box<dyn EffectSpec>> = Vec::new();
@@ -1660,5 +1748,63 @@ mod tests {
                 .sum();
             assert!((direct - zones).abs() < 1e-12, "z {v}: {direct} vs {zones}");
         }
+    }
+
+    /// An interval of the output map that fewer than [`MAP_INTERVAL_SAMPLES`] fitted samples
+    /// enter has no column of its own and takes the slope of its neighbour nearer to 0: its own
+    /// coefficient, whatever it is, does not reach the model.
+    #[test]
+    fn an_output_map_interval_that_few_samples_enter_takes_its_neighbours_slope() {
+        // z over [-3, 3.7], and three samples beyond the last knot (3/4 of the peak 5)
+        let mut z: Vec<f64> = (0..=400).map(|k| -3.0 + 6.7 * k as f64 / 400.0).collect();
+        z.extend([4.0, 4.5, 5.0]);
+        let pi = PrandtlIshlinskiiSpec {
+            linear_weight: 1.0,
+            thresholds: vec![1.0],
+            weights: vec![0.5],
+            initial_state: 0.0,
+            input_map: None,
+            dead_zones: None,
+        };
+        let prev = super::super::fitting::PreviousPath {
+            output: std::sync::Arc::new(z.clone()),
+            spec: std::sync::Arc::new(HysteresisSpec::PrandtlIshlinskii(pi.clone())),
+        };
+        let u = vec![0.0; z.len()];
+        let setup = PathSetup {
+            u: &u,
+            held_out: None,
+            ts: 1e-3,
+            sign: 1.0,
+            plays: 5,
+            plays_by_levels: true,
+            variant: 1,
+            previous: Some(prev.clone()),
+        };
+        let t = OutputMapTerm::new(&setup, &prev, 1.0).unwrap();
+        assert_eq!(t.ties_of(&z), vec![0, 1, 2, 3, 4, 5, 5]);
+        let th = vec![0.0; t.n_params()];
+        let cols = t.columns(&th);
+        assert!(cols[6].0.iter().all(|&v| v == 0.0));
+        // the tied interval's samples count in its neighbour's column
+        let last = z.len() - 1;
+        assert!((cols[5].0[last] - (5.0 - 2.5)).abs() < 1e-12);
+        // a slope of 10^6 on the tied interval does not reach the dead zones
+        let spec = t.spec(&th, 0.0, &[0.2, 0.5, 0.9, 1.0, 0.7, 0.3, 1e6]);
+        let dz = match spec
+            .spec
+            .as_ref()
+            .and_then(|s| s.as_any().downcast_ref::<HysteresisSpec>())
+        {
+            Some(HysteresisSpec::PrandtlIshlinskii(p)) => p.dead_zones.clone().unwrap(),
+            _ => panic!("a Prandtl-Ishlinskii operator with dead zones"),
+        };
+        assert!(dz.weights.iter().all(|w| w.abs() <= 1.0), "{dz:?}");
+        // a held-out block's samples do not count: without most of (2.5, 3.75), that
+        // interval and the outer one take the slope of (1.25, 2.5)
+        let mut held = setup.clone();
+        held.held_out = Some(330..398);
+        let t = OutputMapTerm::new(&held, &prev, 1.0).unwrap();
+        assert_eq!(t.ties_of(&z), vec![0, 1, 2, 3, 4, 4, 4]);
     }
 }
