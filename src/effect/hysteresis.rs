@@ -1697,12 +1697,8 @@ mod tests {
         }
     }
 
-    /// The slopes of the piecewise-linear map fitted on the intervals between the knots
-    /// convert to a dead-zone superposition that gives the same map, increasing, and a valid
-    /// plant-file operator.
-    #[test]
-    fn the_output_map_slopes_convert_to_the_same_dead_zone_map() {
-        let z: Vec<f64> = (0..=400).map(|k| -3.0 + 8.0 * k as f64 / 400.0).collect();
+    /// A first-stage operator (one play) and its output `z`, as the output map's stage gets it.
+    fn first_stage_of(z: &[f64]) -> (PrandtlIshlinskiiSpec, super::super::fitting::PreviousPath) {
         let pi = PrandtlIshlinskiiSpec {
             linear_weight: 1.0,
             thresholds: vec![1.0],
@@ -1712,12 +1708,16 @@ mod tests {
             dead_zones: None,
         };
         let prev = super::super::fitting::PreviousPath {
-            output: std::sync::Arc::new(z.clone()),
+            output: std::sync::Arc::new(z.to_vec()),
             spec: std::sync::Arc::new(HysteresisSpec::PrandtlIshlinskii(pi.clone())),
         };
-        let u = vec![0.0; z.len()];
-        let setup = PathSetup {
-            u: &u,
+        (pi, prev)
+    }
+
+    /// The path setup of an output map's stage on the input `u` (5 plays, the plain operator).
+    fn map_setup<'a>(u: &'a [f64], prev: &super::super::fitting::PreviousPath) -> PathSetup<'a> {
+        PathSetup {
+            u,
             held_out: None,
             ts: 1e-3,
             sign: 1.0,
@@ -1725,7 +1725,18 @@ mod tests {
             plays_by_levels: true,
             variant: 1,
             previous: Some(prev.clone()),
-        };
+        }
+    }
+
+    /// The slopes of the piecewise-linear map fitted on the intervals between the knots
+    /// convert to a dead-zone superposition that gives the same map, increasing, and a valid
+    /// plant-file operator.
+    #[test]
+    fn the_output_map_slopes_convert_to_the_same_dead_zone_map() {
+        let z: Vec<f64> = (0..=400).map(|k| -3.0 + 8.0 * k as f64 / 400.0).collect();
+        let (pi, prev) = first_stage_of(&z);
+        let u = vec![0.0; z.len()];
+        let setup = map_setup(&u, &prev);
         let t = OutputMapTerm::new(&setup, &prev, 1.0).unwrap();
         // knots at 1/4, 1/2, 3/4 of -3 and of 5: seven intervals
         assert_eq!(t.knots.len(), 6);
@@ -1758,29 +1769,9 @@ mod tests {
         // z over [-3, 3.7], and three samples beyond the last knot (3/4 of the peak 5)
         let mut z: Vec<f64> = (0..=400).map(|k| -3.0 + 6.7 * k as f64 / 400.0).collect();
         z.extend([4.0, 4.5, 5.0]);
-        let pi = PrandtlIshlinskiiSpec {
-            linear_weight: 1.0,
-            thresholds: vec![1.0],
-            weights: vec![0.5],
-            initial_state: 0.0,
-            input_map: None,
-            dead_zones: None,
-        };
-        let prev = super::super::fitting::PreviousPath {
-            output: std::sync::Arc::new(z.clone()),
-            spec: std::sync::Arc::new(HysteresisSpec::PrandtlIshlinskii(pi.clone())),
-        };
+        let (_, prev) = first_stage_of(&z);
         let u = vec![0.0; z.len()];
-        let setup = PathSetup {
-            u: &u,
-            held_out: None,
-            ts: 1e-3,
-            sign: 1.0,
-            plays: 5,
-            plays_by_levels: true,
-            variant: 1,
-            previous: Some(prev.clone()),
-        };
+        let setup = map_setup(&u, &prev);
         let t = OutputMapTerm::new(&setup, &prev, 1.0).unwrap();
         assert_eq!(t.ties_of(&z), vec![0, 1, 2, 3, 4, 5, 5]);
         let th = vec![0.0; t.n_params()];
