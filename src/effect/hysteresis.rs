@@ -764,7 +764,8 @@ const MIN_RELATIVE_SLOPE: f64 = 1e-6;
 /// nearer to 0 ([`OutputMapTerm::ties_of`]). The operator's weights move z while the map is
 /// fitted, and a slope fixed by the few samples that poke into an interval is free to take any
 /// value there (a 2-DoF member of development zoo seed 25: a slope 10^6 times the others on an
-/// interval two samples entered, the fitted free run R^2 0.99997, the model's -2.1).
+/// interval that five samples entered by 2e-10 of z; the fit's free run R^2 0.99997, the
+/// model's -2.1, its other slopes floored at 10^-6 of that one).
 pub const MAP_INTERVAL_SAMPLES: usize = 10;
 
 impl<'a> OutputMapTerm<'a> {
@@ -902,13 +903,13 @@ impl<'a> OutputMapTerm<'a> {
 
     /// S'(v) of the map of slopes `s` (0 on a knot).
     fn slope_of(&self, bounds: &[(f64, f64)], s: &[f64], v: f64) -> f64 {
+        self.interval_of(bounds, v).map_or(0.0, |i| s[i])
+    }
+
+    /// The interval of S (of `bounds`) that `v` lies inside; `None` on a knot.
+    fn interval_of(&self, bounds: &[(f64, f64)], v: f64) -> Option<usize> {
         let i = self.knots.partition_point(|&d| d < v);
-        // the slope of the interval that z lies inside (0 on a knot)
-        if bounds[i].0 < v && v < bounds[i].1 {
-            s[i]
-        } else {
-            0.0
-        }
+        (bounds[i].0 < v && v < bounds[i].1).then_some(i)
     }
 
     /// The map's columns S_j(z) - S_j(0) of the operator's output `z` where `wanted`, into
@@ -940,8 +941,7 @@ impl<'a> OutputMapTerm<'a> {
             if self.held_out.as_ref().is_some_and(|r| r.contains(&k)) {
                 continue;
             }
-            let i = self.knots.partition_point(|&d| d < v);
-            if bounds[i].0 < v && v < bounds[i].1 {
+            if let Some(i) = self.interval_of(&bounds, v) {
                 count[i] += 1;
             }
         }
@@ -960,13 +960,9 @@ impl<'a> OutputMapTerm<'a> {
         ties
     }
 
-    /// [`OutputMapTerm::ties_of`] the operator's output at weights `w` (cached).
-    fn ties_at(&self, w: &[f64]) -> std::sync::Arc<Vec<usize>> {
-        self.ties_with(w, None)
-    }
-
-    /// [`OutputMapTerm::ties_at`], from the operator's output `z` at `w` where it is at hand.
-    fn ties_with(&self, w: &[f64], z: Option<&[f64]>) -> std::sync::Arc<Vec<usize>> {
+    /// [`OutputMapTerm::ties_of`] the operator's output at weights `w` (cached), from that
+    /// output `z` where the caller has it at hand.
+    fn ties_at(&self, w: &[f64], z: Option<&[f64]>) -> std::sync::Arc<Vec<usize>> {
         {
             let cache = self.ties.lock().unwrap_or_else(|e| e.into_inner());
             if let Some(c) = cache.as_ref() {
@@ -1036,7 +1032,7 @@ impl<'a> OutputMapTerm<'a> {
         }
         let z = self.z(w);
         let bounds = self.bounds();
-        let s = Self::tied(s, &self.ties_with(w, Some(&z)));
+        let s = Self::tied(s, &self.ties_at(w, Some(&z)));
         let at: Vec<f64> = z.iter().map(|&v| self.slope_of(&bounds, &s, v)).collect();
         let at = std::sync::Arc::new(at);
         *cache = Some(SlopeAt {
@@ -1108,7 +1104,7 @@ impl TermFit for OutputMapTerm<'_> {
         let z = self.z(w);
         let m = self.knots.len() + 1;
         let mut out = vec![Vec::new(); m];
-        self.map_columns(&z, &mut out, &vec![true; m], &self.ties_at(w));
+        self.map_columns(&z, &mut out, &vec![true; m], &self.ties_at(w, Some(&z)));
         let mut cols: Vec<Column<'s>> = out.into_iter().map(|c| (Cow::Owned(c), true)).collect();
         if let Some(range) = self.bw {
             let c = bw_memoized(self.u, range, &th[..2], &self.bw_memo);
@@ -1131,7 +1127,7 @@ impl TermFit for OutputMapTerm<'_> {
         let m = self.knots.len() + 1;
         if wanted[..m].iter().any(|w| *w) {
             let w = self.weights_of(th);
-            let ties = self.ties_at(w);
+            let ties = self.ties_at(w, None);
             let z = self.z_block(w, rows.clone(), &mut state.carry, &mut state.scratch);
             self.map_columns(&z, &mut out[..m], &wanted[..m], &ties);
         }
@@ -1190,7 +1186,7 @@ impl TermFit for OutputMapTerm<'_> {
         let x = self.x_block(rows.clone(), carry, scratch, &wanted, true);
         let z = self.z_of(w, rows.clone(), &x);
         let bounds = self.bounds();
-        let s = Self::tied(&coef[..self.knots.len() + 1], &self.ties_at(w));
+        let s = Self::tied(&coef[..self.knots.len() + 1], &self.ties_at(w, None));
         let slope: Vec<f64> = z.iter().map(|&v| self.slope_of(&bounds, &s, v)).collect();
         for (o, &q) in out.iter_mut().zip(qs) {
             let xq = if q == nbw {
@@ -1216,7 +1212,7 @@ impl TermFit for OutputMapTerm<'_> {
                 *v += t;
             }
         }
-        let slopes = Self::tied(&coef[..m], &self.ties_at(w));
+        let slopes = Self::tied(&coef[..m], &self.ties_at(w, None));
         let spec = PrandtlIshlinskiiSpec {
             dead_zones: Some(self.dead_zones(&slopes)),
             ..pi
