@@ -343,13 +343,17 @@ pub fn max_abs(x: &[f64]) -> f64 {
     x.iter().fold(0.0f64, |a, v| a.max(v.abs()))
 }
 
-/// Peak-to-peak range of a signal.
-pub fn ptp(x: &[f64]) -> f64 {
-    let (lo, hi) = x
-        .iter()
+/// The smallest and largest value of a signal ((inf, -inf) for an empty one).
+pub fn min_max(x: &[f64]) -> (f64, f64) {
+    x.iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
             (lo.min(v), hi.max(v))
-        });
+        })
+}
+
+/// Peak-to-peak range of a signal.
+pub fn ptp(x: &[f64]) -> f64 {
+    let (lo, hi) = min_max(x);
     if lo.is_finite() {
         hi - lo
     } else {

@@ -161,10 +161,11 @@ struct DriftTerm {
 }
 
 impl DriftTerm {
-    fn new(samples: usize, ts: f64) -> DriftTerm {
+    /// The columns over the first `rows` of `samples` samples (the time constants from all).
+    fn new(samples: usize, rows: usize, ts: f64) -> DriftTerm {
         let span = samples as f64 * ts;
         let taus: Vec<f64> = FIT_TAUS.iter().map(|s| s * span).collect();
-        let t: Vec<f64> = (0..samples).map(|k| k as f64 * ts).collect();
+        let t: Vec<f64> = (0..rows).map(|k| k as f64 * ts).collect();
         let mut columns = vec![t.clone()];
         for tau in &taus {
             columns.push(t.iter().map(|v| 1.0 - (-v / tau).exp()).collect());
@@ -278,7 +279,11 @@ impl Effect for DriftEffect {
         "drift is a function of the time since the experiment started, not of the input: a NARX model of the input cannot hold it (fit it in a grey-box model)"
     }
     fn output_term(&self, setup: &OutputSetup) -> Option<Box<dyn TermFit>> {
-        Some(Box::new(DriftTerm::new(setup.samples, setup.ts)))
+        Some(Box::new(DriftTerm::new(
+            setup.samples,
+            setup.rows,
+            setup.ts,
+        )))
     }
     fn parameter_count(&self, _variant: usize, _plays: usize) -> (usize, usize) {
         (0, 1 + FIT_TAUS.len())

@@ -70,8 +70,12 @@ pub const SECOND_STAGE_PARAM: &str = "second_stage";
 /// What a path term is built from.
 #[derive(Debug, Clone)]
 pub struct PathSetup<'a> {
-    /// The path's input on the training record.
+    /// The path's input over the rows the fit runs over: the training record, or its first
+    /// part where a long record's starts are chosen on it (`graybox::STARTS_ROWS`).
     pub u: &'a [f64],
+    /// The path's input on the whole training record (`u` is its first part): choices made
+    /// from the data see it, so that a fit on a part has the parameters of the whole.
+    pub whole: &'a [f64],
     /// Samples of `u` whose outputs the fit leaves out (a block of a cross-validation):
     /// choices made from the data (thresholds, knots, ranges) see [`PathSetup::fitted_input`].
     pub held_out: Option<std::ops::Range<usize>>,
@@ -92,15 +96,16 @@ pub struct PathSetup<'a> {
 }
 
 impl PathSetup<'_> {
-    /// The path's input on the samples the fit sees (without the held-out block).
+    /// The path's input on the samples of the whole training record that the fit sees
+    /// (without the held-out block).
     pub fn fitted_input(&self) -> std::borrow::Cow<'_, [f64]> {
         match &self.held_out {
             Some(r) if !r.is_empty() => {
-                let mut v = self.u[..r.start].to_vec();
-                v.extend_from_slice(&self.u[r.end..]);
+                let mut v = self.whole[..r.start].to_vec();
+                v.extend_from_slice(&self.whole[r.end..]);
                 std::borrow::Cow::Owned(v)
             }
-            _ => std::borrow::Cow::Borrowed(self.u),
+            _ => std::borrow::Cow::Borrowed(self.whole),
         }
     }
 }
@@ -110,6 +115,9 @@ impl PathSetup<'_> {
 pub struct OutputSetup {
     /// Samples of the training record.
     pub samples: usize,
+    /// The rows the fit runs over: `samples`, or the first part of the record where a long
+    /// record's starts are chosen on it (choices, such as time constants, still see `samples`).
+    pub rows: usize,
     /// Sampling period in seconds.
     pub ts: f64,
     /// The variant chosen.

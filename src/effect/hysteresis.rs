@@ -1357,7 +1357,7 @@ impl Effect for HysteresisEffect {
     }
     fn term<'a>(&self, setup: &PathSetup<'a>) -> Option<Box<dyn TermFit + 'a>> {
         let u = setup.u;
-        if reversals(u) < 2 {
+        if reversals(setup.whole) < 2 {
             // no loop on this path's input (a cross path driven by a staircase, say): a
             // linear path, the gain column alone; check_record asks one input to reverse
             return Some(Box::new(PiTerm::new(
@@ -1629,6 +1629,7 @@ mod tests {
         };
         let setup = PathSetup {
             u: &u,
+            whole: &u,
             held_out: None,
             ts: 1e-3,
             sign: 1.0,
@@ -1714,6 +1715,7 @@ mod tests {
     fn map_setup<'a>(u: &'a [f64], prev: &super::super::fitting::PreviousPath) -> PathSetup<'a> {
         PathSetup {
             u,
+            whole: u,
             held_out: None,
             ts: 1e-3,
             sign: 1.0,

@@ -78,6 +78,85 @@ fn fit_problem(
     Ok(res)
 }
 
+/// `prob`, the problem over the first `rows` samples, fitted from its starts (the grid's and
+/// `extra`); where `part_of(rows)` names a first part, its starts chosen on that part (the
+/// part's, in turn, on its own first part), the best refined on the whole.
+/// `build(st, plays, rows)`: the problem over the first `rows` samples.
+#[allow(clippy::too_many_arguments)]
+fn fit_rows<'a>(
+    build: &dyn Fn(&OutputStructure, usize, usize) -> OutputProblem<'a>,
+    part_of: &dyn Fn(usize) -> Option<usize>,
+    prob: &OutputProblem,
+    st: &OutputStructure,
+    plays: usize,
+    rows: usize,
+    extra: Vec<Vec<f64>>,
+    options: &super::FitOptions,
+) -> Result<LmResult, GreyBoxError> {
+    match part_of(rows) {
+        None => fit_problem(prob, build(st, plays.min(3), rows), extra, options),
+        Some(part_rows) => {
+            let part = build(st, plays, part_rows);
+            let best = fit_rows(
+                build,
+                part_of,
+                &part,
+                st,
+                plays,
+                part_rows,
+                extra.clone(),
+                options,
+            )?;
+            drop(part);
+            refine_on_whole(prob, best, extra, options)
+        }
+    }
+}
+
+/// A problem fitted from its starts (the grid's and the warm starts given) with its
+/// structure and plays, as [`fit_rows`] does for the record at hand.
+type FitFromStarts<'p> = dyn Fn(&OutputProblem, &OutputStructure, usize, Vec<Vec<f64>>) -> Result<LmResult, GreyBoxError>
+    + 'p;
+
+/// How near the ends of its range over the whole record an input or the output must come in a
+/// record's first part for the fit's starts to be chosen on it (a share of the range).
+const PART_RANGE: f64 = 0.05;
+
+/// The best fit of a record's first part refined on the whole record: Levenberg-Marquardt
+/// with every parameter free, from the part's fit or from a warm start of `extra` (the
+/// simpler variant's fit on the whole), whichever errs less on the whole: never worse than
+/// the simpler variant, as on all the samples.
+fn refine_on_whole(
+    prob: &OutputProblem,
+    part: LmResult,
+    extra: Vec<Vec<f64>>,
+    options: &super::FitOptions,
+) -> Result<LmResult, GreyBoxError> {
+    let trace = std::env::var_os("HYSTBENCH_TRACE").is_some();
+    let t = Instant::now();
+    let cost = |th: &[f64]| prob.eval(th, true).map_or(f64::INFINITY, |e| e.cost);
+    let mut start = part.theta;
+    let mut best = cost(&start);
+    for th in extra {
+        let c = cost(&th);
+        if c < best {
+            (start, best) = (th, c);
+        }
+    }
+    let all = vec![true; prob.n_theta()];
+    let mut res = levenberg_marquardt(prob, start, &all, options)?;
+    if trace {
+        eprintln!(
+            "on the whole record: cost {best:.6e} -> {:.6e}, {} iterations, {:.2} s",
+            res.eval.cost,
+            res.iterations,
+            t.elapsed().as_secs_f64()
+        );
+    }
+    res.iterations += part.iterations;
+    Ok(res)
+}
+
 /// `job(i)` for every `i` below `n`, at most `side` at a time on the threads (each thread that
 /// is free takes the next `i`), the results in the order of `i`.
 fn side_by_side<R: Send>(n: usize, side: usize, job: impl Fn(usize) -> R + Sync) -> Vec<R> {
@@ -311,6 +390,67 @@ impl GreyBoxConfig {
         Ok(())
     }
 
+    /// The first part of the first `n` samples on which a fit's starts are chosen: from
+    /// [`FitOptions::starts_part`], doubled until it shows what those samples show
+    /// ([`GreyBoxConfig::shows_the_whole`]); `None` (every start on every sample) when no
+    /// part up to half of them does (a staircase whose first levels span a small part of its
+    /// range, say).
+    fn starts_part(&self, u: &[&[f64]], names: &[String], ts: f64, n: usize) -> Option<usize> {
+        let mut rows = self.options.starts_part(n)?;
+        while 2 * rows <= n {
+            if self.shows_the_whole(u, names, ts, n, rows) {
+                return Some(rows);
+            }
+            rows *= 2;
+        }
+        None
+    }
+
+    /// Whether the first `rows` of the first `n` samples show what all `n` show: every
+    /// input reaches the ends of its range over the `n` samples (within [`PART_RANGE`] of
+    /// it: the plays' thresholds and the input map's knots spread over the whole range) and
+    /// its fastest change (within that share: the dynamics), and every chosen effect's
+    /// record check passes on them (creep's holds or slow content, the reversals of
+    /// hysteresis). What the part must show is the input's: the parameters' meaning comes
+    /// from it (asking the output to reach its range too changed no fit of the development
+    /// zoo and refused more parts). A noisy input whose fastest change is a spike late in
+    /// the record fails it: its fit runs every start on every sample, as a short record's
+    /// does.
+    fn shows_the_whole(
+        &self,
+        u: &[&[f64]],
+        names: &[String],
+        ts: f64,
+        n: usize,
+        rows: usize,
+    ) -> bool {
+        let reaches = |v: &[f64]| {
+            let (lo, hi) = crate::metrics::min_max(&v[..n]);
+            let (a, b) = crate::metrics::min_max(&v[..rows]);
+            let tol = PART_RANGE * (hi - lo);
+            a <= lo + tol && b >= hi - tol
+        };
+        // the fastest change of each input (a chirp's first part is slow: its dynamics
+        // would be chosen on rates the record exceeds later)
+        let fastest = |v: &[f64]| v.windows(2).fold(0.0f64, |m, w| m.max((w[1] - w[0]).abs()));
+        let rates = |v: &[f64]| fastest(&v[..rows]) >= (1.0 - PART_RANGE) * fastest(&v[..n]);
+        if !u.iter().all(|v| reaches(v) && rates(v)) {
+            return false;
+        }
+        let names: Vec<&str> = names.iter().map(String::as_str).collect();
+        let part: Vec<&[f64]> = u.iter().map(|v| &v[..rows]).collect();
+        let view = RecordView {
+            input_names: &names,
+            inputs: &part,
+            samples: rows,
+            ts,
+            parsimonious: self.options.parsimonious_creep,
+        };
+        self.chosen()
+            .iter()
+            .all(|c| c.effect.check_record(&view, c.variant).is_ok())
+    }
+
     /// Fit the model to a record (inputs and outputs as selected in `rec`). The first
     /// `options.train_fraction` of the record is fitted; scores are on the rest when it is < 1,
     /// else on the whole record.
@@ -519,7 +659,9 @@ impl GreyBoxConfig {
         let out = &train.outputs[o];
         let mut st = self.structure(train, o)?;
         let t0 = Instant::now();
-        let problem = |st: &OutputStructure, plays: usize| {
+        let n = out.values.len();
+        // the problem over the first `rows` samples
+        let problem_over = |st: &OutputStructure, plays: usize, rows: usize| {
             let p = OutputProblem::new(
                 &out.name,
                 &out.values,
@@ -529,12 +671,27 @@ impl GreyBoxConfig {
                 st,
                 plays,
                 self.options.held_out.clone(),
+                rows,
             )
             .with_ridge(self.options.ridge);
             match excluded {
-                Some(m) => p.with_excluded(m.clone()),
+                Some(m) => p.with_excluded(m[..rows.min(m.len())].to_vec()),
                 None => p,
             }
+        };
+        let problem = |st: &OutputStructure, plays: usize| problem_over(st, plays, n);
+        let part_of = |rows| self.starts_part(u, names, train.ts, rows);
+        let fit = |prob: &OutputProblem, st: &OutputStructure, plays: usize, extra| {
+            fit_rows(
+                &problem_over,
+                &part_of,
+                prob,
+                st,
+                plays,
+                n,
+                extra,
+                &self.options,
+            )
         };
         let mut prob = problem(&st, self.options.plays);
         // a variant that names a warm start also starts from the fit with that (simpler)
@@ -553,16 +710,11 @@ impl GreyBoxConfig {
             let mut st_w = st.clone();
             st_w.terms[i].variant = w;
             let simple = problem(&st_w, 0);
-            let r = fit_problem(&simple, problem(&st_w, 0), Vec::new(), &self.options)?;
+            let r = fit(&simple, &st_w, 0, Vec::new())?;
             iterations += r.iterations;
             extra.push(prob.theta_from(&simple, &r.theta));
         }
-        let mut res = fit_problem(
-            &prob,
-            problem(&st, self.options.plays.min(3)),
-            extra,
-            &self.options,
-        )?;
+        let mut res = fit(&prob, &st, self.options.plays, extra)?;
         res.iterations += iterations;
         // the output without dynamics, which its fit cannot switch off, when the mode ran to
         // the edge of its band: kept when it fits better (an output of a 2-DoF record that
@@ -573,8 +725,7 @@ impl GreyBoxConfig {
             .flatten();
         if let Some(st0) = static_alternative {
             let prob0 = problem(&st0, self.options.plays);
-            let coarse0 = problem(&st0, self.options.plays.min(3));
-            if let Ok(r0) = fit_problem(&prob0, coarse0, Vec::new(), &self.options) {
+            if let Ok(r0) = fit(&prob0, &st0, self.options.plays, Vec::new()) {
                 let its = res.iterations + r0.iterations;
                 if r0.eval.cost < res.eval.cost {
                     (st, prob, res) = (st0, prob0, r0);
@@ -607,7 +758,7 @@ impl GreyBoxConfig {
         drop(prob);
         if self.options.output_map {
             if let Some((spec2, res2)) =
-                self.output_map_stage(&st, &res, &spec, u, names, train.ts, &problem)
+                self.output_map_stage(&st, &res, &spec, u, names, train.ts, &problem, &fit)
             {
                 return Ok(StagedOutput {
                     spec: spec2,
@@ -640,6 +791,7 @@ impl GreyBoxConfig {
         names: &[String],
         ts: f64,
         problem: &dyn Fn(&OutputStructure, usize) -> OutputProblem<'a>,
+        fit: &FitFromStarts,
     ) -> Option<(crate::plant::OutputSpec, LmResult)> {
         let trace = std::env::var_os("HYSTBENCH_TRACE").is_some();
         // the second stage from a first stage with the operators' weights held
@@ -687,8 +839,7 @@ impl GreyBoxConfig {
         }
         if plain {
             let prob_pi = problem(&st_pi, self.options.plays);
-            let coarse = problem(&st_pi, self.options.plays.min(3));
-            if let Ok(r) = fit_problem(&prob_pi, coarse, Vec::new(), &self.options) {
+            if let Ok(r) = fit(&prob_pi, &st_pi, self.options.plays, Vec::new()) {
                 let first = prob_pi.output_spec(&r.theta, &r.eval.coef);
                 if let Some(h) = held_from(&first) {
                     if h.1.eval.cost < held.1.eval.cost {
@@ -974,6 +1125,27 @@ mod tests {
         }
     }
 
+    /// `record(1, n)` with an input of period 2,000 samples (two sines, a hold of 350
+    /// samples in each period): every part of a period or more shows what the whole shows.
+    fn periodic(n: usize) -> IoRecord {
+        let mut rec = record(1, n);
+        let s = |k: usize| {
+            let p = (k % 2000) as f64 / 2000.0;
+            let tau = std::f64::consts::TAU;
+            20.0 * (tau * p).sin() + 6.0 * (16.0 * tau * p).sin()
+        };
+        for (k, v) in rec.inputs[0].values.iter_mut().enumerate() {
+            *v = if (700..1050).contains(&(k % 2000)) {
+                s(k - k % 2000 + 700)
+            } else {
+                s(k)
+            };
+        }
+        let u = rec.inputs[0].values.clone();
+        rec.outputs[0].values = u.iter().map(|&v| 0.8 * v + 0.01 * v * v.abs()).collect();
+        rec
+    }
+
     /// The problem of output `y1` of `rec` with `effects` (5 plays), and a point away from
     /// zero in every parameter (creep gains, B, Gamma, f_n, zeta).
     fn problem_at<'a>(
@@ -995,12 +1167,132 @@ mod tests {
             &st,
             cfg.options.plays,
             held_out,
+            usize::MAX,
         );
         let mut th = prob.initial(&prob, 1).remove(0);
         for (i, t) in th.iter_mut().enumerate() {
             *t += 0.05 + 0.01 * i as f64;
         }
         (prob, th)
+    }
+
+    /// A problem over the first rows of a record is the whole record's problem cut there: the
+    /// same parameters (thresholds, knots, creep's and drift's time constants, the paths'
+    /// signs from the whole record), and at the same point the same model output, bit for
+    /// bit, on those rows (every effect runs causally).
+    #[test]
+    fn a_problem_over_the_first_rows_is_the_whole_problem_cut_there() {
+        let n = 9000;
+        let rec = record(1, n);
+        for effects in [
+            "hysteresis,creep,dynamics,drift",
+            "bouc-wen,creep,dynamics,viscous",
+            "hysteresis,spencer",
+        ] {
+            let (whole, th) = problem_at(&rec, effects, Some(2000..2500));
+            let mut cfg = GreyBoxConfig::from_effect_list(effects).unwrap();
+            cfg.options.plays = 5;
+            let st = cfg.structure(&rec, 0).unwrap();
+            let u: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
+            let rows = 3001;
+            let part = OutputProblem::new(
+                "y1",
+                &rec.outputs[0].values,
+                u,
+                rec.input_names(),
+                rec.ts,
+                &st,
+                cfg.options.plays,
+                Some(2000..2500),
+                rows,
+            );
+            assert_eq!(part.n_theta(), whole.n_theta(), "{effects}");
+            let coef = whole.eval(&th, true).expect("a finite model").coef;
+            let on_whole = whole.output_at(&th, &coef);
+            let on_part = part.output_at(&th, &coef);
+            assert_eq!(on_part.len(), rows, "{effects}");
+            assert_eq!(on_part[..], on_whole[..rows], "{effects}");
+        }
+    }
+
+    /// A record longer than twice `starts_rows` has its starts chosen on its first part
+    /// (here 2,400 of 24,000 samples), the best refined on the whole: it ends in the
+    /// minimum that every start run on every sample finds.
+    #[test]
+    fn a_long_records_starts_chosen_on_its_first_part_end_in_the_same_minimum() {
+        let rec = periodic(24_000);
+        let mut cfg = GreyBoxConfig::from_effect_list("hysteresis,creep,dynamics").unwrap();
+        cfg.options.plays = 5;
+        assert_eq!(
+            cfg.options.starts_part(24_000),
+            None,
+            "the default: all samples"
+        );
+        let all = cfg.fit(&rec).unwrap();
+        cfg.options.starts_rows = 1000;
+        assert_eq!(cfg.options.starts_part(24_000), Some(2400));
+        assert_eq!(cfg.options.starts_part(2400), Some(1000));
+        assert_eq!(cfg.options.starts_part(2000), None);
+        let u = [rec.inputs[0].values.as_slice()];
+        let names = rec.input_names();
+        let part_of = |n| cfg.starts_part(&u, &names, rec.ts, n);
+        assert_eq!(part_of(24_000), Some(2400), "a period and more");
+        assert_eq!(
+            part_of(2400),
+            None,
+            "the part's parts are shorter than a period"
+        );
+        let part = cfg.fit(&rec).unwrap();
+        let (a, b) = (all.fit.outputs[0].rmse, part.fit.outputs[0].rmse);
+        assert!(
+            b <= a * 1.01,
+            "on the part's starts RMSE {b:.6e}, on every sample's {a:.6e}"
+        );
+    }
+
+    /// A record's first part chooses the starts only where it shows what the whole shows:
+    /// the periodic sines' first tenth does, not where their fastest change comes last; a staircase whose extreme levels come late has no part
+    /// that does (every start on every sample), and one whose first levels reach the ends
+    /// of its range has a longer part than a tenth where the first tenth holds one level.
+    #[test]
+    fn the_starts_are_chosen_on_a_part_only_where_it_shows_the_whole() {
+        let part_with = |effects: &str, rec: &IoRecord| {
+            let mut cfg = GreyBoxConfig::from_effect_list(effects).unwrap();
+            cfg.options.starts_rows = 1000;
+            let u: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
+            let names = rec.input_names();
+            cfg.starts_part(&u, &names, rec.ts, rec.len())
+        };
+        let sines = periodic(24_000);
+        assert_eq!(part_with("hysteresis,creep,dynamics", &sines), Some(2400));
+        // the same sines whose last hold is at another level: the input jumps 30 there, 12
+        // at most before
+        let mut late = sines.clone();
+        late.inputs[0].values[22_700..23_050].fill(-18.0);
+        assert_eq!(
+            part_with("hysteresis,creep,dynamics", &late),
+            None,
+            "the fastest change last"
+        );
+        let part = |rec: &IoRecord| part_with("hysteresis,dynamics", rec);
+        // eight levels held 3,000 samples each, with a small ripple (reversals)
+        let staircase = |levels: [f64; 8]| {
+            let mut rec = record(1, 24_000);
+            for (k, v) in rec.inputs[0].values.iter_mut().enumerate() {
+                *v = levels[k / 3000] + 0.5 * (k as f64 * 0.01).sin();
+            }
+            let u = rec.inputs[0].values.clone();
+            rec.outputs[0].values = u.iter().map(|&v| 0.8 * v + 0.01 * v * v.abs()).collect();
+            rec
+        };
+        let late = staircase([1.0, 3.0, 2.0, 4.0, -9.0, 5.0, 9.0, 0.0]);
+        assert_eq!(part(&late), None, "the extreme levels in the second half");
+        let early = staircase([-9.0, 9.0, 2.0, 4.0, -3.0, 5.0, 1.0, 0.0]);
+        assert_eq!(
+            part(&early),
+            Some(4800),
+            "both extremes in the first 6,000 samples"
+        );
     }
 
     /// Side by side, however many at a time, the results come in the items' order, each
@@ -1248,6 +1540,7 @@ mod tests {
             &st,
             cfg.options.plays,
             None,
+            usize::MAX,
         )
     }
 

@@ -220,6 +220,7 @@ impl OutputStructure {
             c.effect
                 .filter(&OutputSetup {
                     samples,
+                    rows: samples,
                     ts,
                     variant: c.variant,
                     parsimonious: self.parsimonious,
@@ -304,7 +305,12 @@ const FILTER_GROUP: usize = 8;
 
 impl<'a> OutputProblem<'a> {
     /// Set up the problem of one output; `plays` play operators per Prandtl-Ishlinskii path;
-    /// the samples `held_out` do not enter the fit.
+    /// the samples `held_out` do not enter the fit. The problem runs over the first `rows`
+    /// samples of the record (all of them, or a long record's first part on which its starts
+    /// are chosen: [`super::STARTS_ROWS`]) with the parameters of the whole record (thresholds,
+    /// knots, time constants and the paths' signs from all its samples), so that a parameter
+    /// vector means the same on the part and on the whole. A two-stage fit's second stage
+    /// runs on the whole record only.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         name: &str,
@@ -315,9 +321,13 @@ impl<'a> OutputProblem<'a> {
         structure: &OutputStructure,
         plays: usize,
         held_out: Option<Range<usize>>,
+        rows: usize,
     ) -> OutputProblem<'a> {
+        let n = y.len();
+        let rows = rows.min(n);
+        debug_assert!(rows == n || structure.previous.iter().all(Option::is_none));
         let held_out = held_out
-            .map(|r| r.start.min(y.len())..r.end.min(y.len()))
+            .map(|r| r.start.min(n)..r.end.min(n))
             .filter(|r| !r.is_empty());
         let y: Cow<'a, [f64]> = match &held_out {
             Some(r) => {
@@ -328,7 +338,8 @@ impl<'a> OutputProblem<'a> {
             None => Cow::Borrowed(y),
         };
         let setup = |variant| OutputSetup {
-            samples: y.len(),
+            samples: n,
+            rows,
             ts,
             variant,
             parsimonious: structure.parsimonious,
@@ -367,7 +378,8 @@ impl<'a> OutputProblem<'a> {
             let mut terms = Vec::new();
             for c in &structure.terms {
                 let path = PathSetup {
-                    u: u[j],
+                    u: &u[j][..rows],
+                    whole: u[j],
                     held_out: held_out.clone(),
                     ts,
                     sign,
@@ -398,6 +410,18 @@ impl<'a> OutputProblem<'a> {
             .into_iter()
             .filter(|e| e.required_in_path() && !chosen.contains(&e.name()))
             .collect();
+        // the rows the problem runs over
+        let y = match y {
+            Cow::Borrowed(v) => Cow::Borrowed(&v[..rows]),
+            Cow::Owned(mut v) => {
+                v.truncate(rows);
+                Cow::Owned(v)
+            }
+        };
+        let held_out = held_out
+            .map(|r| r.start.min(rows)..r.end.min(rows))
+            .filter(|r| !r.is_empty());
+        let u = u.iter().map(|v| &v[..rows]).collect();
         OutputProblem {
             name: name.to_string(),
             y,

@@ -38,7 +38,7 @@ mod model;
 pub mod nnls;
 mod validate;
 
-pub use config::{FitOptions, GreyBoxConfig, Selected, CV_FOLDS, RIDGES};
+pub use config::{FitOptions, GreyBoxConfig, Selected, CV_FOLDS, RIDGES, STARTS_ROWS};
 pub use driver::train_samples;
 pub use error::GreyBoxError;
 pub use memo::{ByConfig, FitMemo};
