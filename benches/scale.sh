@@ -5,7 +5,9 @@
 #
 # The record: plant `hidden_creep_piezo` on the `hidden_effect_1khz` scenario stretched to SAMPLES
 # samples at 1 kHz (both halves of the scenario scaled alike: sines with random steps, then held
-# levels). For each size, each command runs once under GNU time; the table gives the wall-clock
+# levels); with SCALE_RECORD=repeated, the scenario repeated to SAMPLES samples instead (a
+# multiple of 40,000: a lab's excitation run again and again, whose first tenth shows what the
+# whole record shows; a fit chooses its starts on that part, docs/graybox.md). For each size, each command runs once under GNU time; the table gives the wall-clock
 # seconds and the peak resident memory (MB), and the last column the ratio of the times of
 # consecutive sizes against the ratio of the sizes (linear time: the two agree).
 set -euo pipefail
@@ -30,14 +32,19 @@ measure() { # name, command...: prints "name seconds MB"
 declare -A T
 printf '| command | samples | seconds | peak MB |\n|---|---|---|---|\n'
 for n in "${SIZES[@]}"; do
-    python3 - "$n" >"$W/s$n.json" <<'EOF'
+    python3 - "$n" "${SCALE_RECORD:-stretched}" >"$W/s$n.json" <<'EOF'
 import json, sys
-n = int(sys.argv[1])
+n, how = int(sys.argv[1]), sys.argv[2]
 s = json.load(open("scenarios/hidden_effect_1khz.json"))
 f = n / s["samples"]
 s["samples"] = n
-for part in s["inputs"][0]["concat"]:
-    part["duration_s"] *= f
+if how == "repeated":
+    if n % 40000:
+        sys.exit("SCALE_RECORD=repeated: SAMPLES must be a multiple of 40000")
+    s["inputs"][0]["concat"] *= n // 40000
+else:
+    for part in s["inputs"][0]["concat"]:
+        part["duration_s"] *= f
 print(json.dumps(s))
 EOF
     "$BIN" simulate --plant plants/hidden_creep_piezo.json --scenario "$W/s$n.json" --out "$W/r$n.csv" 2>/dev/null

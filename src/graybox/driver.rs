@@ -118,8 +118,8 @@ fn fit_rows<'a>(
 type FitFromStarts<'p> = dyn Fn(&OutputProblem, &OutputStructure, usize, Vec<Vec<f64>>) -> Result<LmResult, GreyBoxError>
     + 'p;
 
-/// How near the ends of its range over the whole record an input or the output must come in a
-/// record's first part for the fit's starts to be chosen on it (a share of the range).
+/// How near the ends of its range, and its fastest change, over the whole record an input
+/// must come in a record's first part for the fit's starts to be chosen on it (a share).
 const PART_RANGE: f64 = 0.05;
 
 /// The best fit of a record's first part refined on the whole record: Levenberg-Marquardt
