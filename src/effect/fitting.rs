@@ -76,7 +76,8 @@ pub struct PathSetup<'a> {
     /// The path's input on the whole training record (`u` is its first part): choices made
     /// from the data see it, so that a fit on a part has the parameters of the whole.
     pub whole: &'a [f64],
-    /// Samples of `u` whose outputs the fit leaves out (a block of a cross-validation):
+    /// Samples of `whole` whose outputs the fit leaves out (a block of a cross-validation;
+    /// it may lie beyond the rows of `u`):
     /// choices made from the data (thresholds, knots, ranges) see [`PathSetup::fitted_input`].
     pub held_out: Option<std::ops::Range<usize>>,
     /// Sampling period in seconds.

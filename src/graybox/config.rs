@@ -91,7 +91,7 @@ impl FitOptions {
     /// time stays linear in the record).
     pub fn starts_part(&self, n: usize) -> Option<usize> {
         let min = self.starts_rows.max(1);
-        (n > 2 * min).then(|| (n / 10).max(min))
+        (n.saturating_sub(min) > min).then(|| (n / 10).max(min))
     }
 }
 
