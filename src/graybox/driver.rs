@@ -808,31 +808,32 @@ impl GreyBoxConfig {
         fit: &FitFromStarts,
     ) -> Option<(crate::plant::OutputSpec, LmResult)> {
         let trace = std::env::var_os("HYSTBENCH_TRACE").is_some();
-        // the second stage from a first stage with the operators' weights held
-        let held_from =
-            |first: &crate::plant::OutputSpec| -> Option<(OutputProblem<'a>, LmResult)> {
-                let previous: Vec<Option<PreviousPath>> = st
-                    .paths
-                    .iter()
-                    .map(|&j| first_stage_path(first, &names[j], u[j], ts))
-                    .collect();
-                if previous.iter().all(Option::is_none) {
-                    return None;
-                }
-                let mut st2 = st.clone();
-                st2.previous = previous;
-                let prob2 = problem(&st2, self.options.plays);
-                let theta2 = prob2.theta_with_new(&res.theta, SECOND_STAGE_PARAM)?;
-                let free = prob2.free_except(SECOND_STAGE_PARAM);
-                let r2 = levenberg_marquardt(&prob2, theta2, &free, &self.options).ok()?;
-                if trace {
-                    eprintln!(
-                        "output map stage, operator held: cost {:.6e} -> {:.6e}",
-                        res.eval.cost, r2.eval.cost
-                    );
-                }
-                Some((prob2, r2))
-            };
+        // the second stage from a first stage with the operators' weights held: its
+        // structure and its fit (the problem is rebuilt for the winner, not held while the
+        // plain operator's fit runs: on a long record two problems at once set the peak)
+        let held_from = |first: &crate::plant::OutputSpec| -> Option<(OutputStructure, LmResult)> {
+            let previous: Vec<Option<PreviousPath>> = st
+                .paths
+                .iter()
+                .map(|&j| first_stage_path(first, &names[j], u[j], ts))
+                .collect();
+            if previous.iter().all(Option::is_none) {
+                return None;
+            }
+            let mut st2 = st.clone();
+            st2.previous = previous;
+            let prob2 = problem(&st2, self.options.plays);
+            let theta2 = prob2.theta_with_new(&res.theta, SECOND_STAGE_PARAM)?;
+            let free = prob2.free_except(SECOND_STAGE_PARAM);
+            let r2 = levenberg_marquardt(&prob2, theta2, &free, &self.options).ok()?;
+            if trace {
+                eprintln!(
+                    "output map stage, operator held: cost {:.6e} -> {:.6e}",
+                    res.eval.cost, r2.eval.cost
+                );
+            }
+            Some((st2, r2))
+        };
         // the dead zones on the fit's own operator, its weights held: the cheap test of
         // whether the output depends on the operator's output statically; the rest of the
         // stage (a second first stage, the weights refitted) only where it does
@@ -852,19 +853,22 @@ impl GreyBoxConfig {
             }
         }
         if plain {
-            let prob_pi = problem(&st_pi, self.options.plays);
-            if let Ok(r) = fit(&prob_pi, &st_pi, self.options.plays, Vec::new()) {
-                let first = prob_pi.output_spec(&r.theta, &r.eval.coef);
-                if let Some(h) = held_from(&first) {
-                    if h.1.eval.cost < held.1.eval.cost {
-                        held = h;
-                    }
+            let first = {
+                let prob_pi = problem(&st_pi, self.options.plays);
+                fit(&prob_pi, &st_pi, self.options.plays, Vec::new())
+                    .ok()
+                    .map(|r| prob_pi.output_spec(&r.theta, &r.eval.coef))
+            };
+            if let Some(h) = first.as_ref().and_then(|first| held_from(first)) {
+                if h.1.eval.cost < held.1.eval.cost {
+                    held = h;
                 }
             }
         }
         // then the best one with the weights free (the weights that the first stage fitted
         // to the output itself, refitted under the dead zones)
-        let (prob2, r_held) = held;
+        let (st2, r_held) = held;
+        let prob2 = problem(&st2, self.options.plays);
         let all = vec![true; prob2.n_theta()];
         let t_stage = Instant::now();
         // a budget of its own, spent only where it pays: a few iterations first, and the
