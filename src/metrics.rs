@@ -100,6 +100,23 @@ pub fn scores(measured: &[f64], predicted: &[f64]) -> Scores {
 mod tests {
     use super::*;
 
+    /// The Kolmogorov-Smirnov distance: 0 for the same values in any order, the share
+    /// that lies beyond the other sample's values, 1 without overlap.
+    #[test]
+    fn ks_distance_counts_the_share_between_the_distributions() {
+        let a: Vec<f64> = (0..100).map(f64::from).collect();
+        let mut b = a.clone();
+        b.reverse();
+        assert_eq!(ks_distance(&a, &b), 0.0);
+        assert_eq!(ks_distance(&a, &a[..50]), 0.5);
+        assert_eq!(ks_distance(&a[..50], &a[50..]), 1.0);
+        // ties: a staircase's two levels against one of them
+        let two = [1.0, 1.0, 2.0, 2.0];
+        assert_eq!(ks_distance(&two, &[1.0; 3]), 0.5);
+        assert_eq!(ks_distance(&two, &[1.0, 2.0]), 0.0);
+        assert_eq!(ks_distance(&[], &two), 0.0);
+    }
+
     #[test]
     fn rmse_is_over_the_common_length_and_never_panics() {
         assert_eq!(rmse(&[1.0, 2.0, 3.0], &[1.0, 2.0]), 0.0);
@@ -349,6 +366,35 @@ pub fn min_max(x: &[f64]) -> (f64, f64) {
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
             (lo.min(v), hi.max(v))
         })
+}
+
+/// The Kolmogorov-Smirnov distance between the empirical distributions of the values of `a`
+/// and of `b`: the largest difference of their cumulative shares at any value, 0 (the same
+/// shares everywhere) to 1 (no overlap). 0 when either is empty.
+pub fn ks_distance(a: &[f64], b: &[f64]) -> f64 {
+    if a.is_empty() || b.is_empty() {
+        return 0.0;
+    }
+    let sorted = |x: &[f64]| {
+        let mut v = x.to_vec();
+        v.sort_unstable_by(f64::total_cmp);
+        v
+    };
+    let (a, b) = (sorted(a), sorted(b));
+    let (na, nb) = (a.len() as f64, b.len() as f64);
+    let (mut i, mut j, mut d) = (0, 0, 0.0f64);
+    while i < a.len() && j < b.len() {
+        // every value equal to the smaller one, from both samples, then the shares
+        let x = a[i].min(b[j]);
+        while i < a.len() && a[i] <= x {
+            i += 1;
+        }
+        while j < b.len() && b[j] <= x {
+            j += 1;
+        }
+        d = d.max((i as f64 / na - j as f64 / nb).abs());
+    }
+    d
 }
 
 /// Peak-to-peak range of a signal.

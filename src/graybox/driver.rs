@@ -129,6 +129,13 @@ type FitFromStarts<'p> = dyn Fn(&OutputProblem, &OutputStructure, usize, Vec<Vec
 /// must come in a record's first part for the fit's starts to be chosen on it (a share).
 const PART_RANGE: f64 = 0.05;
 
+/// How far the distribution of an input's values over a record's first part may lie from
+/// its distribution over the whole record (the Kolmogorov-Smirnov distance,
+/// [`crate::metrics::ks_distance`]) for the fit's starts to be chosen on that part: a fifth
+/// (a staircase whose part holds a few of its levels lies further; so does a decaying
+/// sine's first part, its large loops without the small ones).
+const PART_DISTRIBUTION: f64 = 0.2;
+
 /// The best fit of a record's first part refined on the whole record: Levenberg-Marquardt
 /// with every parameter free, from the part's fit or from a warm start of `extra` (the
 /// simpler variant's fit on the whole), whichever errs less on the whole: never worse than
@@ -421,8 +428,10 @@ impl GreyBoxConfig {
 
     /// Whether the first `rows` of the first `n` samples show what all `n` show: every
     /// input reaches the ends of its range over the `n` samples (within [`PART_RANGE`] of
-    /// it: the plays' thresholds and the input map's knots spread over the whole range) and
-    /// its fastest change (within that share: the dynamics), and every chosen effect's
+    /// it: the plays' thresholds and the input map's knots spread over the whole range),
+    /// its fastest change (within that share: the dynamics) and the levels it dwells at
+    /// (its values distributed as over the `n` samples, within [`PART_DISTRIBUTION`]), and
+    /// every chosen effect's
     /// record check passes on them as on a record of their length (creep's holds or slow
     /// content for the part's own time constants, shorter than the whole record's that
     /// the part's fit carries; the reversals of hysteresis). What the part must show is
@@ -448,7 +457,11 @@ impl GreyBoxConfig {
         // would be chosen on rates the record exceeds later)
         let fastest = |v: &[f64]| v.windows(2).fold(0.0f64, |m, w| m.max((w[1] - w[0]).abs()));
         let rates = |v: &[f64]| fastest(&v[..rows]) >= (1.0 - PART_RANGE) * fastest(&v[..n]);
-        if !u.iter().all(|v| reaches(v) && rates(v)) {
+        // the levels it dwells at (a staircase's first levels may span its range, and leave
+        // most levels out: held-out zoo seed 1016, member 52)
+        let levels =
+            |v: &[f64]| crate::metrics::ks_distance(&v[..rows], &v[..n]) <= PART_DISTRIBUTION;
+        if !u.iter().all(|v| reaches(v) && rates(v) && levels(v)) {
             return false;
         }
         let names: Vec<&str> = names.iter().map(String::as_str).collect();
@@ -859,7 +872,7 @@ impl GreyBoxConfig {
                     .ok()
                     .map(|r| prob_pi.output_spec(&r.theta, &r.eval.coef))
             };
-            if let Some(h) = first.as_ref().and_then(|first| held_from(first)) {
+            if let Some(h) = first.as_ref().and_then(&held_from) {
                 if h.1.eval.cost < held.1.eval.cost {
                     held = h;
                 }
@@ -1307,18 +1320,29 @@ mod tests {
         let late = staircase([1.0, 3.0, 2.0, 4.0, -9.0, 5.0, 9.0, 0.0]);
         assert_eq!(part(&late), None, "the extreme levels in the second half");
         let early = staircase([-9.0, 9.0, 2.0, 4.0, -3.0, 5.0, 1.0, 0.0]);
+        // both extremes in the first 6,000 samples: not a fifth (two levels of eight: a
+        // Kolmogorov-Smirnov distance of 0.5) but two fifths (four levels spread over the
+        // range: 0.19)
+        assert_eq!(part(&early), Some(9600), "the levels over the part");
+        // the same levels in a cycle of 6,000 samples run four times, the extremes last:
+        // the first part that holds a cycle
+        let mut cycles = early.clone();
+        for (k, v) in cycles.inputs[0].values.iter_mut().enumerate() {
+            let levels = [2.0, 4.0, -3.0, 5.0, 1.0, 0.0, -9.0, 9.0];
+            *v = levels[(k % 6000) / 750] + 0.5 * (k as f64 * 0.01).sin();
+        }
         assert_eq!(
-            part(&early),
-            Some(4800),
-            "both extremes in the first 6,000 samples"
+            part(&cycles),
+            Some(9600),
+            "the levels of a cycle in the part"
         );
         // a cross-validation's held-out block inside the part: none; beyond it: the part
         let held = |block: std::ops::Range<usize>| {
             let mut cfg = GreyBoxConfig::from_effect_list("hysteresis,dynamics").unwrap();
             cfg.options.starts_rows = 1000;
             cfg.options.held_out = Some(block);
-            let u = [early.inputs[0].values.as_slice()];
-            cfg.starts_part(&u, &early.input_names(), early.ts, early.len())
+            let u = [cycles.inputs[0].values.as_slice()];
+            cfg.starts_part(&u, &cycles.input_names(), cycles.ts, cycles.len())
         };
         assert_eq!(held(0..6000), None, "the first block held out");
         assert_eq!(
@@ -1326,7 +1350,7 @@ mod tests {
             None,
             "a block that the doubled part would hold"
         );
-        assert_eq!(held(12_000..18_000), Some(4800), "a block after the part");
+        assert_eq!(held(12_000..18_000), Some(9600), "a block after the part");
     }
 
     /// Side by side, however many at a time, the results come in the items' order, each
@@ -1392,6 +1416,20 @@ mod tests {
                 assert!(rel(*x, *y, sb) < 1e-9, "{effects}: J^T r {x:e} vs {y:e}");
             }
             assert_eq!(a, a.transpose(), "{effects}: J^T J symmetric");
+            // the derivatives held in single precision (a long record's): within its rounding
+            let (a1, b1) = prob
+                .with_derivative_bytes(0)
+                .projected_normal_equations(&th, &ev, &free);
+            let worst = |x: &[f64], y: &[f64], scale: f64| {
+                x.iter()
+                    .zip(y.iter())
+                    .map(|(p, q)| rel(*p, *q, scale))
+                    .fold(0.0, f64::max)
+            };
+            let ea = worst(a1.as_slice(), a0.as_slice(), sa);
+            let eb = worst(b1.as_slice(), b0.as_slice(), sb);
+            assert!(ea < 1e-6 && eb < 1e-6, "{effects}: single {ea:e} {eb:e}");
+            assert_ne!(a1, a, "{effects}: single precision held no derivative");
         }
     }
 

@@ -129,6 +129,9 @@ pub(crate) struct OutputProblem<'a> {
     required: Vec<&'static dyn Effect>,
     /// Rows of a piece of a streamed pass (the record's length or more: held whole).
     piece_rows: usize,
+    /// The bytes of derivative columns held whole in double precision beyond which they are
+    /// held in single ([`WHOLE_DERIVATIVES_BYTES`]).
+    derivative_bytes: usize,
     /// The buffers of a streamed record's passes, kept from one pass to the next.
     pool: std::sync::Mutex<Vec<Vec<f64>>>,
 }
@@ -300,6 +303,41 @@ fn add_columns(out: &mut [f64], cols: &[&[f64]], coef: &[f64], sign: f64) {
         });
 }
 
+/// The derivative columns of the Jacobian held whole (the parameters whose derivatives are
+/// not computed a block at a time: the filters', say) beyond which they are held in single
+/// precision (a record of 20,000,000 samples: 160 MB a column in double precision). Their
+/// products are still summed in double precision; each value is rounded to 24 bits (a
+/// relative 6e-8), which moves the step of Levenberg-Marquardt, not the cost it is judged by.
+pub const WHOLE_DERIVATIVES_BYTES: usize = 1 << 30;
+
+/// A column held over the whole record, in double or (to halve its memory) single precision.
+enum HeldColumn {
+    Double(Vec<f64>),
+    Single(Vec<f32>),
+}
+
+impl HeldColumn {
+    /// `c`, in single precision when `single` (and every value fits).
+    fn held(c: Vec<f64>, single: bool) -> HeldColumn {
+        if single {
+            // (a value beyond single precision's range stays in double)
+            let s: Vec<f32> = c.iter().map(|&v| v as f32).collect();
+            if s.iter().all(|v| v.is_finite()) {
+                return HeldColumn::Single(s);
+            }
+        }
+        HeldColumn::Double(c)
+    }
+
+    /// Its values on `rows`, in double precision.
+    fn rows(&self, rows: Range<usize>) -> Cow<'_, [f64]> {
+        match self {
+            HeldColumn::Double(v) => Cow::Borrowed(&v[rows]),
+            HeldColumn::Single(v) => Cow::Owned(v[rows].iter().map(|&x| f64::from(x)).collect()),
+        }
+    }
+}
+
 /// Columns filtered together (the resonator's recursion runs up to this many side by side).
 const FILTER_GROUP: usize = 8;
 
@@ -440,9 +478,18 @@ impl<'a> OutputProblem<'a> {
             },
             required,
             piece_rows: usize::MAX,
+            derivative_bytes: WHOLE_DERIVATIVES_BYTES,
             pool: Default::default(),
         }
         .with_piece_rows(None)
+    }
+
+    /// The same problem with its derivative columns held in single precision beyond `bytes`
+    /// (in double) instead of [`WHOLE_DERIVATIVES_BYTES`].
+    #[cfg(test)]
+    pub(crate) fn with_derivative_bytes(mut self, bytes: usize) -> Self {
+        self.derivative_bytes = bytes;
+        self
     }
 
     /// The same problem with its basis streamed in pieces of `rows` rows (rounded up to whole
@@ -952,7 +999,10 @@ impl<'a> OutputProblem<'a> {
             slot[pos] = Some(k);
         }
         let w = ev.w.as_deref();
-        let (derivatives, mut finite): (Vec<Vec<f64>>, Vec<bool>) =
+        // the derivatives held whole in single precision where in double they would pass
+        // [`WHOLE_DERIVATIVES_BYTES`] (a long record's)
+        let single = n.saturating_mul(p - blocked.len()).saturating_mul(8) > self.derivative_bytes;
+        let (derivatives, mut finite): (Vec<HeldColumn>, Vec<bool>) =
             self.with_derivative_jobs(th, &ev.coef, w, |jobs| {
                 let mut by_param: Vec<Option<&JacobianJob<'_>>> = vec![None; self.layout.n_theta];
                 for (q, job) in &jobs {
@@ -962,10 +1012,10 @@ impl<'a> OutputProblem<'a> {
                     .enumerate()
                     .map(|(pos, &q)| {
                         if slot[pos].is_some() {
-                            return (Vec::new(), true);
+                            return (HeldColumn::Double(Vec::new()), true);
                         }
                         let Some(job) = by_param[q] else {
-                            return (vec![0.0; n], false);
+                            return (HeldColumn::held(vec![0.0; n], single), false);
                         };
                         let mut c = job();
                         self.hold_out(&mut c);
@@ -975,7 +1025,7 @@ impl<'a> OutputProblem<'a> {
                                 .filter(|v| !v.is_finite())
                                 .for_each(|v| *v = 0.0);
                         }
-                        (c, finite)
+                        (HeldColumn::held(c, single), finite)
                     })
                     .unzip()
             });
@@ -1042,15 +1092,15 @@ impl<'a> OutputProblem<'a> {
         // D on a block: the whole columns' rows, the blocked ones' from the piece
         fn d_at<'x>(
             slot: &[Option<usize>],
-            whole: &'x [Vec<f64>],
+            whole: &'x [HeldColumn],
             (rows, local): (Range<usize>, Range<usize>),
             extra: &'x [Vec<f64>],
-        ) -> Vec<&'x [f64]> {
+        ) -> Vec<Cow<'x, [f64]>> {
             slot.iter()
                 .zip(whole)
                 .map(|(s, d)| match s {
-                    Some(k) => &extra[*k][local.clone()],
-                    None => &d[rows.clone()],
+                    Some(k) => Cow::Borrowed(&extra[*k][local.clone()]),
+                    None => d.rows(rows.clone()),
                 })
                 .collect()
         }
@@ -1067,6 +1117,7 @@ impl<'a> OutputProblem<'a> {
                 |rows| piece(&mut pass, rows),
                 |rows, local, passive, extra| {
                     let d = d_at(&slot, &derivatives, (rows, local), extra);
+                    let d: Vec<&[f64]> = d.iter().map(AsRef::as_ref).collect();
                     gram::tr_mul_slices(passive, &d, false)
                 },
             );
@@ -1099,7 +1150,8 @@ impl<'a> OutputProblem<'a> {
             |rows| piece(&mut pass, rows),
             |rows, local, passive, extra| {
                 // [J | r] on the block: J = D - P A, the passive columns subtracted in order
-                let mut cols = d_at(&slot, &derivatives, (rows.clone(), local), extra);
+                let d = d_at(&slot, &derivatives, (rows.clone(), local), extra);
+                let mut cols: Vec<&[f64]> = d.iter().map(AsRef::as_ref).collect();
                 cols.push(&r[rows.clone()]);
                 let len = rows.len();
                 let mut jr = gram::block_of(&cols, 0..len);
