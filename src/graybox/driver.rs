@@ -431,14 +431,13 @@ impl GreyBoxConfig {
     /// it: the plays' thresholds and the input map's knots spread over the whole range),
     /// its fastest change (within that share: the dynamics) and the levels it dwells at
     /// (its values distributed as over the `n` samples, within [`PART_DISTRIBUTION`]), and
-    /// every chosen effect's
-    /// record check passes on them as on a record of their length (creep's holds or slow
-    /// content for the part's own time constants, shorter than the whole record's that
-    /// the part's fit carries; the reversals of hysteresis). What the part must show is
-    /// the input's: the parameters' meaning comes from it (asking the output to reach its
-    /// range too changed no fit of the development zoo and refused more parts). A noisy
-    /// input whose fastest change is a spike late in the record fails it: its fit runs
-    /// every start on every sample, as a short record's does.
+    /// every chosen effect's record check passes on them as on a record of their length
+    /// (creep's holds or slow content for the part's own time constants, shorter than the
+    /// whole record's that the part's fit carries; the reversals of hysteresis). What the
+    /// part must show is the input's: the parameters' meaning comes from it (asking the
+    /// output to reach its range too changed no fit of the development zoo and refused more
+    /// parts). A noisy input whose fastest change is a spike late in the record fails it:
+    /// its fit runs every start on every sample, as a short record's does.
     fn shows_the_whole(
         &self,
         u: &[&[f64]],
