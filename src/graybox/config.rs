@@ -42,7 +42,8 @@ pub struct FitOptions {
     /// well; a caller that validates the model on held-out samples may ask for fewer).
     pub samples_per_parameter: usize,
     /// A record longer than twice this many samples has its starts chosen on its first part
-    /// ([`FitOptions::starts_part`]), the best refined on the whole ([`STARTS_ROWS`]).
+    /// ([`FitOptions::starts_part`]), or as many samples in blocks spread over it where no
+    /// first part shows the whole, the best refined on the whole ([`STARTS_ROWS`]).
     pub starts_rows: usize,
 }
 

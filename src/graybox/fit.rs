@@ -338,6 +338,16 @@ impl HeldColumn {
     }
 }
 
+/// The rows an [`OutputProblem`] runs over.
+#[derive(Debug, Clone)]
+pub enum Rows<'a> {
+    /// The record's first rows (all of them: `usize::MAX`).
+    First(usize),
+    /// A part of the record made of blocks spread over it: its inputs and its output over
+    /// those blocks, one after the other (the parameters still come from the whole record).
+    Blocks { u: Vec<&'a [f64]>, y: &'a [f64] },
+}
+
 /// Columns filtered together (the resonator's recursion runs up to this many side by side).
 const FILTER_GROUP: usize = 8;
 
@@ -348,7 +358,9 @@ impl<'a> OutputProblem<'a> {
     /// are chosen: [`super::STARTS_ROWS`]) with the parameters of the whole record (thresholds,
     /// knots, time constants and the paths' signs from all its samples), so that a parameter
     /// vector means the same on the part and on the whole. A two-stage fit's second stage
-    /// runs on the whole record only.
+    /// runs on the whole record only. A part of blocks spread over the record
+    /// ([`Rows::Blocks`]) runs over its own inputs and output; `held_out` then only shapes
+    /// the parameters (the caller leaves those rows of the blocks out: `with_excluded`).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         name: &str,
@@ -359,10 +371,16 @@ impl<'a> OutputProblem<'a> {
         structure: &OutputStructure,
         plays: usize,
         held_out: Option<Range<usize>>,
-        rows: usize,
+        rows: Rows<'a>,
     ) -> OutputProblem<'a> {
         let n = y.len();
-        let rows = rows.min(n);
+        let (rows, part_u, part_y) = match rows {
+            Rows::First(r) => {
+                let r = r.min(n);
+                (r, u.iter().map(|v| &v[..r]).collect::<Vec<_>>(), None)
+            }
+            Rows::Blocks { u, y } => (y.len(), u, Some(y)),
+        };
         debug_assert!(rows == n || structure.previous.iter().all(Option::is_none));
         let held_out = held_out
             .map(|r| r.start.min(n)..r.end.min(n))
@@ -416,7 +434,7 @@ impl<'a> OutputProblem<'a> {
             let mut terms = Vec::new();
             for c in &structure.terms {
                 let path = PathSetup {
-                    u: &u[j][..rows],
+                    u: part_u[j],
                     whole: u[j],
                     held_out: held_out.clone(),
                     ts,
@@ -449,17 +467,19 @@ impl<'a> OutputProblem<'a> {
             .filter(|e| e.required_in_path() && !chosen.contains(&e.name()))
             .collect();
         // the rows the problem runs over
-        let y = match y {
-            Cow::Borrowed(v) => Cow::Borrowed(&v[..rows]),
-            Cow::Owned(mut v) => {
+        let y = match (part_y, y) {
+            (Some(p), _) => Cow::Borrowed(p),
+            (None, Cow::Borrowed(v)) => Cow::Borrowed(&v[..rows]),
+            (None, Cow::Owned(mut v)) => {
                 v.truncate(rows);
                 Cow::Owned(v)
             }
         };
         let held_out = held_out
+            .filter(|_| part_y.is_none())
             .map(|r| r.start.min(rows)..r.end.min(rows))
             .filter(|r| !r.is_empty());
-        let u = u.iter().map(|v| &v[..rows]).collect();
+        let u = part_u;
         OutputProblem {
             name: name.to_string(),
             y,
