@@ -70,10 +70,11 @@ pub const SECOND_STAGE_PARAM: &str = "second_stage";
 /// What a path term is built from.
 #[derive(Debug, Clone)]
 pub struct PathSetup<'a> {
-    /// The path's input over the rows the fit runs over: the training record, or its first
-    /// part where a long record's starts are chosen on it (`graybox::STARTS_ROWS`).
+    /// The path's input over the rows the fit runs over: the training record, or the part
+    /// of it on which a long record's starts are chosen (`graybox::STARTS_ROWS`: its first
+    /// part, or blocks spread over it one after the other).
     pub u: &'a [f64],
-    /// The path's input on the whole training record (`u` is its first part): choices made
+    /// The path's input on the whole training record (`u` is a part of it): choices made
     /// from the data see it, so that a fit on a part has the parameters of the whole.
     pub whole: &'a [f64],
     /// Samples of `whole` whose outputs the fit leaves out (a block of a cross-validation;
@@ -116,8 +117,9 @@ impl PathSetup<'_> {
 pub struct OutputSetup {
     /// Samples of the training record.
     pub samples: usize,
-    /// The rows the fit runs over: `samples`, or the first part of the record where a long
-    /// record's starts are chosen on it (choices, such as time constants, still see `samples`).
+    /// The rows the fit runs over: `samples`, or the part of the record on which a long
+    /// record's starts are chosen (choices, such as time constants, still see `samples`;
+    /// drift, a signal of time, is never fitted on blocks spread over the record).
     pub rows: usize,
     /// Sampling period in seconds.
     pub ts: f64,
