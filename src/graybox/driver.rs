@@ -599,16 +599,16 @@ impl GreyBoxConfig {
         // rates the record exceeds later), within each block: the part's fastest change
         // reaches the record's but for the fastest [`PART_RARE_CHANGES`] (one step between a
         // protocol's phases is not what the dynamics are chosen on)
-        let changes =
-            |v: &[f64]| -> Vec<f64> { v.windows(2).map(|w| (w[1] - w[0]).abs()).collect() };
         let rates = |v: &[f64], p: &[f64]| {
             let mut starts = vec![0];
             starts.extend_from_slice(junctions);
             starts.push(p.len());
             let on_part = starts.windows(2).fold(0.0f64, |m, b| {
-                changes(&p[b[0]..b[1]]).into_iter().fold(m, f64::max)
+                p[b[0]..b[1]]
+                    .windows(2)
+                    .fold(m, |m, w| m.max((w[1] - w[0]).abs()))
             });
-            let mut on_whole = changes(&v[..n]);
+            let mut on_whole: Vec<f64> = v[..n].windows(2).map(|w| (w[1] - w[0]).abs()).collect();
             if on_whole.is_empty() {
                 return true;
             }
@@ -849,9 +849,10 @@ impl GreyBoxConfig {
         let mut st = self.structure(train, o)?;
         let t0 = Instant::now();
         let n = out.values.len();
-        // where no first part shows the whole record: blocks spread over it
-        let blocks = self
-            .starts_part(u, names, train.ts, n)
+        // the whole record's part, judged once for every fit below: its first part, else
+        // blocks spread over it
+        let first = self.starts_part(u, names, train.ts, n);
+        let blocks = first
             .is_none()
             .then(|| self.spread_part(u, names, train.ts, n))
             .flatten()
@@ -891,9 +892,15 @@ impl GreyBoxConfig {
             }
         };
         let problem = |st: &OutputStructure, plays: usize| problem_over(st, plays, Part::First(n));
-        let part_of = |rows| match &blocks {
-            Some(_) if rows == n => Some(Part::Blocks),
-            _ => self.starts_part(u, names, train.ts, rows).map(Part::First),
+        let top = first
+            .map(Part::First)
+            .or(blocks.as_ref().map(|_| Part::Blocks));
+        let part_of = |rows| {
+            if rows == n {
+                top
+            } else {
+                self.starts_part(u, names, train.ts, rows).map(Part::First)
+            }
         };
         let fit = |prob: &OutputProblem, st: &OutputStructure, plays: usize, extra| {
             fit_rows(
@@ -1610,6 +1617,13 @@ mod tests {
             7 * 250 + 286 - 250
         );
         assert!(held.excluded[6000..6286].iter().all(|&m| m));
+        let mut held_cfg = cfg.clone();
+        held_cfg.options.held_out = Some(60_000..68_000);
+        assert_eq!(
+            held_cfg.spread_part(&u, &names, rec.ts, n),
+            Some(blocks.clone()),
+            "a held-out block keeps the blocks"
+        );
         let mut drift = GreyBoxConfig::from_effect_list("hysteresis,creep,drift").unwrap();
         drift.options.starts_rows = 1000;
         assert_eq!(drift.spread_part(&u, &names, rec.ts, n), None, "drift");
