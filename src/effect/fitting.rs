@@ -60,6 +60,15 @@ pub struct Variant {
 pub struct PreviousPath {
     pub output: std::sync::Arc<Vec<f64>>,
     pub spec: std::sync::Arc<dyn super::EffectSpec>,
+    /// Where `output` runs over a part of the record (the second stage's fit on a long
+    /// record's part): the least and greatest of the operator's output over the whole
+    /// record's fitted samples, so that the terms built on it mean the same on the part and on
+    /// the whole. `None`: `output` covers the record.
+    pub range: Option<(f64, f64)>,
+    /// Where `output` runs over blocks spread over the record: the rows of the blocks that
+    /// the fit leaves out (each later block's warm-up, a held-out block's rows), in place of
+    /// the record's held-out block, whose rows number the whole record's.
+    pub left_out: Option<std::sync::Arc<Vec<bool>>>,
 }
 
 /// The name of a term's parameters that only a second stage has (the first stage's operator

@@ -734,6 +734,8 @@ struct OutputMapTerm<'a> {
     slope: std::sync::Mutex<Option<SlopeAt>>,
     /// The samples the fit sees (a cross-validation's held-out block left out).
     held_out: Option<Range<usize>>,
+    /// On a part of blocks, the rows the fit leaves out (`PreviousPath::left_out`).
+    left_out: Option<std::sync::Arc<Vec<bool>>>,
     /// The intervals' slopes tied ([`OutputMapTerm::ties_of`]) at the last weights asked.
     ties: std::sync::Mutex<Option<TiesAt>>,
 }
@@ -784,9 +786,11 @@ impl<'a> OutputMapTerm<'a> {
         }
         let z = prev.output.as_slice();
         let fitted = |k: &usize| setup.held_out.as_ref().is_none_or(|r| !r.contains(k));
-        let (lo, hi) = (0..z.len())
-            .filter(fitted)
-            .fold((0.0f64, 0.0f64), |(a, b), k| (a.min(z[k]), b.max(z[k])));
+        let (lo, hi) = prev.range.unwrap_or_else(|| {
+            (0..z.len())
+                .filter(fitted)
+                .fold((0.0f64, 0.0f64), |(a, b), k| (a.min(z[k]), b.max(z[k])))
+        });
         let mut knots = Vec::new();
         for f in output_map_knot_fractions(output_map_knots(pi.thresholds.len())) {
             if hi > 0.0 {
@@ -811,7 +815,12 @@ impl<'a> OutputMapTerm<'a> {
             knots,
             bw: (setup.variant == 0 && setup.sign > 0.0).then_some(range),
             slope: std::sync::Mutex::new(None),
-            held_out: setup.held_out.clone(),
+            held_out: prev
+                .left_out
+                .is_none()
+                .then(|| setup.held_out.clone())
+                .flatten(),
+            left_out: prev.left_out.clone(),
             ties: std::sync::Mutex::new(None),
         })
     }
@@ -938,7 +947,9 @@ impl<'a> OutputMapTerm<'a> {
         let bounds = self.bounds();
         let mut count = vec![0usize; bounds.len()];
         for (k, &v) in z.iter().enumerate() {
-            if self.held_out.as_ref().is_some_and(|r| r.contains(&k)) {
+            if self.held_out.as_ref().is_some_and(|r| r.contains(&k))
+                || self.left_out.as_ref().is_some_and(|m| m[k])
+            {
                 continue;
             }
             if let Some(i) = self.interval_of(&bounds, v) {
@@ -1626,6 +1637,8 @@ mod tests {
         let prev = super::super::fitting::PreviousPath {
             output: std::sync::Arc::new(z),
             spec: std::sync::Arc::new(HysteresisSpec::PrandtlIshlinskii(pi)),
+            range: None,
+            left_out: None,
         };
         let setup = PathSetup {
             u: &u,
@@ -1707,6 +1720,8 @@ mod tests {
         let prev = super::super::fitting::PreviousPath {
             output: std::sync::Arc::new(z.to_vec()),
             spec: std::sync::Arc::new(HysteresisSpec::PrandtlIshlinskii(pi.clone())),
+            range: None,
+            left_out: None,
         };
         (pi, prev)
     }

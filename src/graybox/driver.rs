@@ -190,9 +190,11 @@ fn gather(v: &[f64], blocks: &[std::ops::Range<usize>]) -> Vec<f64> {
 /// inputs and the output over the blocks, and the rows the fit leaves out (each later
 /// block's warm-up, those the caller leaves out and a held-out block's).
 struct BlockPart {
+    blocks: Vec<std::ops::Range<usize>>,
     u: Vec<Vec<f64>>,
     y: Vec<f64>,
-    excluded: Vec<bool>,
+    /// (shared with a second stage's first-stage paths over the blocks)
+    excluded: std::sync::Arc<Vec<bool>>,
 }
 
 impl BlockPart {
@@ -213,8 +215,10 @@ impl BlockPart {
             .enumerate()
             .flat_map(|(k, b)| b.clone().map(move |i| (k > 0 && i - b.start < warm, i)))
             .map(|(w, i)| w || left_out(i))
-            .collect();
+            .collect::<Vec<bool>>()
+            .into();
         BlockPart {
+            blocks: blocks.to_vec(),
             u: u.iter().map(|v| gather(v, blocks)).collect(),
             y: gather(y, blocks),
             excluded,
@@ -886,7 +890,7 @@ impl GreyBoxConfig {
             )
             .with_ridge(self.options.ridge);
             match (part, &blocks, excluded) {
-                (Part::Blocks, Some(b), _) => p.with_excluded(b.excluded.clone()),
+                (Part::Blocks, Some(b), _) => p.with_excluded(b.excluded.to_vec()),
                 (Part::First(rows), _, Some(m)) => p.with_excluded(m[..rows.min(m.len())].to_vec()),
                 _ => p,
             }
@@ -978,9 +982,32 @@ impl GreyBoxConfig {
         // its basis (the play operators' outputs) is not needed by the second stage
         drop(prob);
         if self.options.output_map {
-            if let Some((spec2, res2)) =
-                self.output_map_stage(&st, &res, &spec, u, names, train.ts, &problem, &fit)
-            {
+            // the second stage's steps on the same part as the first stage's starts
+            let part_problem = |st: &OutputStructure, plays: usize| {
+                problem_over(st, plays, top.unwrap_or(Part::First(n)))
+            };
+            let part = top.map(|p| StagePart {
+                blocks: match p {
+                    Part::Blocks => blocks.as_ref(),
+                    Part::First(_) => None,
+                },
+                rows: match p {
+                    Part::First(rows) => rows,
+                    Part::Blocks => n,
+                },
+                problem: &part_problem,
+            });
+            if let Some((spec2, res2)) = self.output_map_stage(
+                &st,
+                &res,
+                &spec,
+                u,
+                names,
+                train.ts,
+                &problem,
+                &fit,
+                part.as_ref(),
+            ) {
                 return Ok(StagedOutput {
                     spec: spec2,
                     run: res2,
@@ -1002,6 +1029,11 @@ impl GreyBoxConfig {
     /// asymmetric loops), refitted from the first stage's parameters. It goes past its first,
     /// cheap step only where that step pays ([`SECOND_STAGE_HELD_GAIN`]); kept when its cost
     /// is clearly lower ([`OUTPUT_MAP_GAIN`]) and its operators are valid.
+    ///
+    /// On a long record with a part (`part`: the rows on which the first stage chose its
+    /// starts), every step runs on the part, judged against the first stage's cost there,
+    /// and only the stage that would be kept is refitted on the whole record (from the part's
+    /// parameters, which mean the same there: [`part_previous`]) and judged on it.
     #[allow(clippy::too_many_arguments)]
     fn output_map_stage<'a>(
         &self,
@@ -1013,39 +1045,65 @@ impl GreyBoxConfig {
         ts: f64,
         problem: &dyn Fn(&OutputStructure, usize) -> OutputProblem<'a>,
         fit: &FitFromStarts,
+        part: Option<&StagePart<'_, 'a>>,
     ) -> Option<(crate::plant::OutputSpec, LmResult)> {
         let trace = std::env::var_os("HYSTBENCH_TRACE").is_some();
+        let plays = self.options.plays;
+        // the problems the stage's steps run on: the part's, or the whole record's
+        let stage_problem = |st: &OutputStructure| match part {
+            Some(p) => (p.problem)(st, plays),
+            None => problem(st, plays),
+        };
+        // the first stage's cost where the steps run
+        let first_cost = match part {
+            Some(_) => stage_problem(st).eval(&res.theta, true)?.cost,
+            None => res.eval.cost,
+        };
         // the second stage from a first stage with the operators' weights held: its
-        // structure and its fit (the problem is rebuilt for the winner, not held while the
-        // plain operator's fit runs: on a long record two problems at once set the peak)
-        let held_from = |first: &crate::plant::OutputSpec| -> Option<(OutputStructure, LmResult)> {
-            let previous: Vec<Option<PreviousPath>> = st
+        // structure and its fit, and the first stage's paths over the whole record (the
+        // problem is rebuilt for the winner, not held while the plain operator's fit runs: on
+        // a long record two problems at once set the peak)
+        let held_from = |first: &crate::plant::OutputSpec| -> Option<Held> {
+            let whole: Vec<Option<PreviousPath>> = st
                 .paths
                 .iter()
                 .map(|&j| first_stage_path(first, &names[j], u[j], ts))
                 .collect();
-            if previous.iter().all(Option::is_none) {
+            if whole.iter().all(Option::is_none) {
                 return None;
             }
             let mut st2 = st.clone();
-            st2.previous = previous;
-            let prob2 = problem(&st2, self.options.plays);
+            st2.previous = match part {
+                Some(p) => whole
+                    .iter()
+                    .map(|w| {
+                        w.as_ref()
+                            .map(|w| part_previous(w, p, self.options.held_out.as_ref()))
+                    })
+                    .collect(),
+                None => whole.clone(),
+            };
+            let prob2 = stage_problem(&st2);
             let theta2 = prob2.theta_with_new(&res.theta, SECOND_STAGE_PARAM)?;
             let free = prob2.free_except(SECOND_STAGE_PARAM);
             let r2 = levenberg_marquardt(&prob2, theta2, &free, &self.options).ok()?;
             if trace {
                 eprintln!(
                     "output map stage, operator held: cost {:.6e} -> {:.6e}",
-                    res.eval.cost, r2.eval.cost
+                    first_cost, r2.eval.cost
                 );
             }
-            Some((st2, r2))
+            Some(Held {
+                structure: st2,
+                run: r2,
+                whole,
+            })
         };
         // the dead zones on the fit's own operator, its weights held: the cheap test of
         // whether the output depends on the operator's output statically; the rest of the
         // stage (a second first stage, the weights refitted) only where it does
         let mut held = held_from(spec)?;
-        if held.1.eval.cost > SECOND_STAGE_HELD_GAIN * res.eval.cost {
+        if held.run.eval.cost > SECOND_STAGE_HELD_GAIN * first_cost {
             return None;
         }
         // for the default operator, the plain one too (plays alone: an input map or a
@@ -1061,22 +1119,27 @@ impl GreyBoxConfig {
         }
         if plain {
             let first = {
-                let prob_pi = problem(&st_pi, self.options.plays);
-                fit(&prob_pi, &st_pi, self.options.plays, Vec::new())
+                let prob_pi = stage_problem(&st_pi);
+                fit(&prob_pi, &st_pi, plays, Vec::new())
                     .ok()
                     .map(|r| prob_pi.output_spec(&r.theta, &r.eval.coef))
             };
             if let Some(h) = first.as_ref().and_then(&held_from) {
-                if h.1.eval.cost < held.1.eval.cost {
+                if h.run.eval.cost < held.run.eval.cost {
                     held = h;
                 }
             }
         }
         // then the best one with the weights free (the weights that the first stage fitted
         // to the output itself, refitted under the dead zones)
-        let (st2, r_held) = held;
-        let prob2 = problem(&st2, self.options.plays);
+        let Held {
+            structure: st2,
+            run: r_held,
+            whole,
+        } = held;
+        let prob2 = stage_problem(&st2);
         let all = vec![true; prob2.n_theta()];
+        let held_free = prob2.free_except(SECOND_STAGE_PARAM);
         let t_stage = Instant::now();
         // a budget of its own, spent only where it pays: a few iterations first, and the
         // rest when those lowered the cost clearly and already cleared the bar that the stage
@@ -1098,12 +1161,12 @@ impl GreyBoxConfig {
             if trace {
                 eprintln!(
                     "output map stage, probe: cost {:.6e} -> {:.6e} (first stage {:.6e})",
-                    r_held.eval.cost, r.eval.cost, res.eval.cost
+                    r_held.eval.cost, r.eval.cost, first_cost
                 );
             }
             if !r.converged
                 && r.eval.cost < SECOND_STAGE_PROBE_GAIN * r_held.eval.cost
-                && r.eval.cost <= OUTPUT_MAP_GAIN * res.eval.cost
+                && r.eval.cost <= OUTPUT_MAP_GAIN * first_cost
             {
                 let rest = SECOND_STAGE_ITERATIONS - SECOND_STAGE_PROBE;
                 if let Ok(mut more) =
@@ -1130,13 +1193,56 @@ impl GreyBoxConfig {
                 t_stage.elapsed().as_secs_f64()
             );
         }
-        let mut tries: Vec<LmResult> = joint.into_iter().collect();
-        tries.push(r_held);
-        for mut r2 in tries {
-            if r2.eval.cost > OUTPUT_MAP_GAIN * res.eval.cost {
+        // on a part, the whole record's problem is built for the try that would be kept
+        let prob2 = part.is_none().then_some(prob2);
+        let mut tries: Vec<(LmResult, &[bool])> =
+            joint.into_iter().map(|r| (r, &all[..])).collect();
+        tries.push((r_held, &held_free));
+        // on a part, the structure over the whole record, built for the try that would be kept
+        let mut st_whole = None;
+        for (r2, free) in tries {
+            if r2.eval.cost > OUTPUT_MAP_GAIN * first_cost {
                 continue;
             }
-            let spec2 = prob2.output_spec(&r2.theta, &r2.eval.coef);
+            let (spec2, mut r2) = match &prob2 {
+                Some(prob2) => (prob2.output_spec(&r2.theta, &r2.eval.coef), r2),
+                None => {
+                    let st_w = st_whole.get_or_insert_with(|| OutputStructure {
+                        previous: whole.clone(),
+                        ..st2.clone()
+                    });
+                    let prob_w = problem(st_w, plays);
+                    let t = Instant::now();
+                    let from = trace
+                        .then(|| prob_w.eval(&r2.theta, true).map(|e| e.cost))
+                        .flatten();
+                    let Ok(mut w) = levenberg_marquardt(
+                        &prob_w,
+                        r2.theta.clone(),
+                        free,
+                        &budget(SECOND_STAGE_WHOLE),
+                    ) else {
+                        continue;
+                    };
+                    if trace {
+                        eprintln!(
+                            "output map stage on the whole record: cost {:.6e} -> {:.6e} (first stage {:.6e}), {} iterations, {:.2} s",
+                            from.unwrap_or(f64::NAN),
+                            w.eval.cost,
+                            res.eval.cost,
+                            w.iterations,
+                            t.elapsed().as_secs_f64()
+                        );
+                    }
+                    if w.eval.cost > OUTPUT_MAP_GAIN * res.eval.cost {
+                        continue;
+                    }
+                    w.iterations += r2.iterations;
+                    w.converged = res.converged;
+                    w.message = res.message.clone();
+                    (prob_w.output_spec(&w.theta, &w.eval.coef), w)
+                }
+            };
             let valid = spec2
                 .paths
                 .iter()
@@ -1160,6 +1266,57 @@ impl GreyBoxConfig {
     }
 }
 
+/// A second stage with the operators' weights held ([`GreyBoxConfig::output_map_stage`]):
+/// its structure (on the part where there is one), its fit, and the first stage's paths over
+/// the whole record.
+struct Held {
+    structure: OutputStructure,
+    run: LmResult,
+    whole: Vec<Option<PreviousPath>>,
+}
+
+/// A long record's part for the second stage of a fit ([`GreyBoxConfig::output_map_stage`]):
+/// its rows, and the problem over them.
+struct StagePart<'p, 'a> {
+    /// The blocks of a part spread over the record and the rows of them that the fit leaves
+    /// out ([`BlockPart`]); `None`: the first `rows`.
+    blocks: Option<&'p BlockPart>,
+    rows: usize,
+    problem: &'p dyn Fn(&OutputStructure, usize) -> OutputProblem<'a>,
+}
+
+impl StagePart<'_, '_> {
+    /// A whole-record series over the part's rows.
+    fn cut(&self, v: &[f64]) -> Vec<f64> {
+        match self.blocks {
+            Some(b) => gather(v, &b.blocks),
+            None => v[..self.rows].to_vec(),
+        }
+    }
+}
+
+/// A first stage's path over a part of the record: its operator's output over the
+/// whole record taken on the part's rows (a spread part's blocks with the states the whole
+/// record gives them), with the output's range over the whole record's fitted samples (those
+/// outside `held_out`), so that the second stage's terms (the dead zones' knots) mean the same
+/// on the part as on the whole.
+fn part_previous(
+    whole: &PreviousPath,
+    part: &StagePart,
+    held_out: Option<&std::ops::Range<usize>>,
+) -> PreviousPath {
+    let z = whole.output.as_slice();
+    let range = (0..z.len())
+        .filter(|k| held_out.is_none_or(|r| !r.contains(k)))
+        .fold((0.0f64, 0.0f64), |(a, b), k| (a.min(z[k]), b.max(z[k])));
+    PreviousPath {
+        output: std::sync::Arc::new(part.cut(z)),
+        spec: whole.spec.clone(),
+        range: Some(range),
+        left_out: part.blocks.map(|b| b.excluded.clone()),
+    }
+}
+
 /// Levenberg-Marquardt iterations at most of the second stage with the operators' weights
 /// free.
 pub const SECOND_STAGE_ITERATIONS: usize = 40;
@@ -1167,6 +1324,11 @@ pub const SECOND_STAGE_ITERATIONS: usize = 40;
 /// The first iterations of that stage; it goes on only when they brought the cost below
 /// [`SECOND_STAGE_PROBE_GAIN`] of where it started and below the bar of [`OUTPUT_MAP_GAIN`].
 pub const SECOND_STAGE_PROBE: usize = 8;
+
+/// The iterations at most of a second stage fitted on a long record's part when it is
+/// refitted on the whole record: as many as its probe (the part's fit decided; the whole
+/// polishes it).
+pub const SECOND_STAGE_WHOLE: usize = SECOND_STAGE_PROBE;
 
 /// See [`SECOND_STAGE_PROBE`] (0.9 of the cost: 5 % of the RMS error).
 pub const SECOND_STAGE_PROBE_GAIN: f64 = 0.9;
@@ -1237,6 +1399,8 @@ fn first_stage_path(
     output.iter().all(|v| v.is_finite()).then(|| PreviousPath {
         output: std::sync::Arc::new(output),
         spec: std::sync::Arc::from(pi.clone_spec()),
+        range: None,
+        left_out: None,
     })
 }
 
@@ -1629,6 +1793,73 @@ mod tests {
         assert_eq!(drift.spread_part(&u, &names, rec.ts, n), None, "drift");
     }
 
+    /// The second stage (Kuhnen's output map) on a long record's first part, refitted on the
+    /// whole: a saturating loop keeps it as the stage on every sample does, within 2 % of its
+    /// RMSE, the dead zones' knots where the whole record's operator output puts them.
+    #[test]
+    fn the_output_map_stage_on_a_part_keeps_what_the_stage_on_the_whole_keeps() {
+        let n = 40_000;
+        let mut rec = periodic(n);
+        // a play of threshold 4 under a saturating map: a loop that flattens at its ends
+        let mut z = 0.0f64;
+        rec.outputs[0].values = rec.inputs[0]
+            .values
+            .iter()
+            .map(|&v| {
+                z = z.clamp(v - 4.0, v + 4.0);
+                0.3 * z + 12.0 * (z / 12.0).tanh()
+            })
+            .collect();
+        let mut cfg = GreyBoxConfig::from_effect_list("hysteresis").unwrap();
+        cfg.options.plays = 9;
+        let (whole, first_whole) = cfg.fit_stages(&rec).unwrap();
+        assert!(first_whole.is_some(), "the stage kept on the whole");
+        cfg.options.starts_rows = 4000;
+        let u = [rec.inputs[0].values.as_slice()];
+        assert_eq!(
+            cfg.starts_part(&u, &rec.input_names(), rec.ts, n),
+            Some(4000)
+        );
+        let (on_part, first_part) = cfg.fit_stages(&rec).unwrap();
+        assert!(first_part.is_some(), "the stage kept from the part");
+        let (a, b) = (whole.fit.outputs[0].rmse, on_part.fit.outputs[0].rmse);
+        assert!(
+            b <= a * 1.02,
+            "stage from the part RMSE {b:.6e}, on the whole {a:.6e}"
+        );
+        // the same loop under a protocol in phases (sines, then held levels with a ripple):
+        // blocks spread over it, a held-out block's rows left out of them
+        let n = 80_000;
+        let mut rec = periodic(n);
+        let levels = [0.0, -30.0, 10.0, 30.0, -10.0, 20.0, 5.0, -20.0];
+        let mut z = 0.0f64;
+        for k in 0..n {
+            if k >= n / 2 {
+                rec.inputs[0].values[k] =
+                    levels[(k - n / 2) / 5000] + 0.5 * (k as f64 * 0.01).sin();
+            }
+            z = z.clamp(rec.inputs[0].values[k] - 4.0, rec.inputs[0].values[k] + 4.0);
+            rec.outputs[0].values[k] = 0.3 * z + 12.0 * (z / 12.0).tanh();
+        }
+        let mut cfg = GreyBoxConfig::from_effect_list("hysteresis").unwrap();
+        cfg.options.plays = 9;
+        cfg.options.held_out = Some(60_000..68_000);
+        let (whole, first_whole) = cfg.fit_stages(&rec).unwrap();
+        assert!(first_whole.is_some(), "the stage kept on the whole");
+        cfg.options.starts_rows = 1000;
+        let u = [rec.inputs[0].values.as_slice()];
+        let names = rec.input_names();
+        assert_eq!(cfg.starts_part(&u, &names, rec.ts, n), None, "sines first");
+        assert!(cfg.spread_part(&u, &names, rec.ts, n).is_some(), "blocks");
+        let (on_blocks, first_blocks) = cfg.fit_stages(&rec).unwrap();
+        assert!(first_blocks.is_some(), "the stage kept from the blocks");
+        let (a, b) = (whole.fit.outputs[0].rmse, on_blocks.fit.outputs[0].rmse);
+        assert!(
+            b <= a * 1.02,
+            "stage from the blocks RMSE {b:.6e}, on the whole {a:.6e}"
+        );
+    }
+
     /// Side by side, however many at a time, the results come in the items' order, each
     /// item run once.
     #[test]
@@ -1866,6 +2097,8 @@ mod tests {
         PreviousPath {
             output: std::sync::Arc::new(z),
             spec: std::sync::Arc::new(HysteresisSpec::PrandtlIshlinskii(first)),
+            range: None,
+            left_out: None,
         }
     }
 

@@ -357,8 +357,9 @@ impl<'a> OutputProblem<'a> {
     /// samples of the record (all of them, or a long record's first part on which its starts
     /// are chosen: [`super::STARTS_ROWS`]) with the parameters of the whole record (thresholds,
     /// knots, time constants and the paths' signs from all its samples), so that a parameter
-    /// vector means the same on the part and on the whole. A two-stage fit's second stage
-    /// runs on the whole record only. A part of blocks spread over the record
+    /// vector means the same on the part and on the whole (a two-stage fit's second stage
+    /// too: its first-stage paths over the part's rows, with their range over the whole,
+    /// `PreviousPath::range`). A part of blocks spread over the record
     /// ([`Rows::Blocks`]) runs over its own inputs and output; `held_out` then only shapes
     /// the parameters (the caller leaves those rows of the blocks out: `with_excluded`).
     #[allow(clippy::too_many_arguments)]
@@ -381,7 +382,12 @@ impl<'a> OutputProblem<'a> {
             }
             Rows::Blocks { u, y } => (y.len(), u, Some(y)),
         };
-        debug_assert!(rows == n || structure.previous.iter().all(Option::is_none));
+        // a second stage's first-stage paths run over the rows of the problem
+        debug_assert!(structure
+            .previous
+            .iter()
+            .flatten()
+            .all(|p| p.output.len() == rows));
         let held_out = held_out
             .map(|r| r.start.min(n)..r.end.min(n))
             .filter(|r| !r.is_empty());
