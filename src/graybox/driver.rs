@@ -1798,65 +1798,63 @@ mod tests {
     /// RMSE, the dead zones' knots where the whole record's operator output puts them.
     #[test]
     fn the_output_map_stage_on_a_part_keeps_what_the_stage_on_the_whole_keeps() {
-        let n = 40_000;
-        let mut rec = periodic(n);
         // a play of threshold 4 under a saturating map: a loop that flattens at its ends
-        let mut z = 0.0f64;
-        rec.outputs[0].values = rec.inputs[0]
-            .values
-            .iter()
-            .map(|&v| {
-                z = z.clamp(v - 4.0, v + 4.0);
-                0.3 * z + 12.0 * (z / 12.0).tanh()
-            })
-            .collect();
-        let mut cfg = GreyBoxConfig::from_effect_list("hysteresis").unwrap();
-        cfg.options.plays = 9;
-        let (whole, first_whole) = cfg.fit_stages(&rec).unwrap();
-        assert!(first_whole.is_some(), "the stage kept on the whole");
-        cfg.options.starts_rows = 4000;
-        let u = [rec.inputs[0].values.as_slice()];
-        assert_eq!(
-            cfg.starts_part(&u, &rec.input_names(), rec.ts, n),
-            Some(4000)
-        );
-        let (on_part, first_part) = cfg.fit_stages(&rec).unwrap();
-        assert!(first_part.is_some(), "the stage kept from the part");
-        let (a, b) = (whole.fit.outputs[0].rmse, on_part.fit.outputs[0].rmse);
+        let saturating = |rec: &mut IoRecord| {
+            let mut z = 0.0f64;
+            rec.outputs[0].values = rec.inputs[0]
+                .values
+                .iter()
+                .map(|&v| {
+                    z = z.clamp(v - 4.0, v + 4.0);
+                    0.3 * z + 12.0 * (z / 12.0).tanh()
+                })
+                .collect();
+        };
+        // the RMSE with the stage on every sample and from the part (`starts_rows`), both
+        // keeping the stage
+        let on_whole_and_part = |rec: &IoRecord, held_out, starts_rows| {
+            let mut cfg = GreyBoxConfig::from_effect_list("hysteresis").unwrap();
+            cfg.options.plays = 9;
+            cfg.options.held_out = held_out;
+            let (whole, first) = cfg.fit_stages(rec).unwrap();
+            assert!(first.is_some(), "the stage kept on the whole");
+            cfg.options.starts_rows = starts_rows;
+            let (part, first) = cfg.fit_stages(rec).unwrap();
+            assert!(first.is_some(), "the stage kept from the part");
+            (whole.fit.outputs[0].rmse, part.fit.outputs[0].rmse)
+        };
+        let mut rec = periodic(40_000);
+        saturating(&mut rec);
+        let part = |rec: &IoRecord, starts_rows| {
+            let mut cfg = GreyBoxConfig::from_effect_list("hysteresis").unwrap();
+            cfg.options.starts_rows = starts_rows;
+            let u = [rec.inputs[0].values.as_slice()];
+            let names = rec.input_names();
+            (
+                cfg.starts_part(&u, &names, rec.ts, rec.len()),
+                cfg.spread_part(&u, &names, rec.ts, rec.len()).is_some(),
+            )
+        };
+        assert_eq!(part(&rec, 4000).0, Some(4000), "a first part");
+        let (a, b) = on_whole_and_part(&rec, None, 4000);
         assert!(
             b <= a * 1.02,
-            "stage from the part RMSE {b:.6e}, on the whole {a:.6e}"
+            "from the part RMSE {b:.6e}, on the whole {a:.6e}"
         );
         // the same loop under a protocol in phases (sines, then held levels with a ripple):
         // blocks spread over it, a held-out block's rows left out of them
         let n = 80_000;
         let mut rec = periodic(n);
         let levels = [0.0, -30.0, 10.0, 30.0, -10.0, 20.0, 5.0, -20.0];
-        let mut z = 0.0f64;
-        for k in 0..n {
-            if k >= n / 2 {
-                rec.inputs[0].values[k] =
-                    levels[(k - n / 2) / 5000] + 0.5 * (k as f64 * 0.01).sin();
-            }
-            z = z.clamp(rec.inputs[0].values[k] - 4.0, rec.inputs[0].values[k] + 4.0);
-            rec.outputs[0].values[k] = 0.3 * z + 12.0 * (z / 12.0).tanh();
+        for (k, v) in rec.inputs[0].values.iter_mut().enumerate().skip(n / 2) {
+            *v = levels[(k - n / 2) / 5000] + 0.5 * (k as f64 * 0.01).sin();
         }
-        let mut cfg = GreyBoxConfig::from_effect_list("hysteresis").unwrap();
-        cfg.options.plays = 9;
-        cfg.options.held_out = Some(60_000..68_000);
-        let (whole, first_whole) = cfg.fit_stages(&rec).unwrap();
-        assert!(first_whole.is_some(), "the stage kept on the whole");
-        cfg.options.starts_rows = 1000;
-        let u = [rec.inputs[0].values.as_slice()];
-        let names = rec.input_names();
-        assert_eq!(cfg.starts_part(&u, &names, rec.ts, n), None, "sines first");
-        assert!(cfg.spread_part(&u, &names, rec.ts, n).is_some(), "blocks");
-        let (on_blocks, first_blocks) = cfg.fit_stages(&rec).unwrap();
-        assert!(first_blocks.is_some(), "the stage kept from the blocks");
-        let (a, b) = (whole.fit.outputs[0].rmse, on_blocks.fit.outputs[0].rmse);
+        saturating(&mut rec);
+        assert_eq!(part(&rec, 1000), (None, true), "blocks");
+        let (a, b) = on_whole_and_part(&rec, Some(60_000..68_000), 1000);
         assert!(
             b <= a * 1.02,
-            "stage from the blocks RMSE {b:.6e}, on the whole {a:.6e}"
+            "from the blocks RMSE {b:.6e}, on the whole {a:.6e}"
         );
     }
 
