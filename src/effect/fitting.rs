@@ -71,6 +71,16 @@ pub struct PreviousPath {
     pub left_out: Option<std::sync::Arc<Vec<bool>>>,
 }
 
+impl PreviousPath {
+    /// The least and greatest (0 included) of an operator's output `z` over the samples
+    /// outside `held_out`: the range a second stage's knots spread over.
+    pub fn fitted_range(z: &[f64], held_out: Option<&std::ops::Range<usize>>) -> (f64, f64) {
+        (0..z.len())
+            .filter(|k| held_out.is_none_or(|r| !r.contains(k)))
+            .fold((0.0f64, 0.0f64), |(a, b), k| (a.min(z[k]), b.max(z[k])))
+    }
+}
+
 /// The name of a term's parameters that only a second stage has (the first stage's operator
 /// weights that it refits, say): they start at 0 from the first stage's fit
 /// (`OutputProblem::theta_with_new`).

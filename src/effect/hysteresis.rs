@@ -785,11 +785,8 @@ impl<'a> OutputMapTerm<'a> {
             return None;
         }
         let z = prev.output.as_slice();
-        let fitted = |k: &usize| setup.held_out.as_ref().is_none_or(|r| !r.contains(k));
         let (lo, hi) = prev.range.unwrap_or_else(|| {
-            (0..z.len())
-                .filter(fitted)
-                .fold((0.0f64, 0.0f64), |(a, b), k| (a.min(z[k]), b.max(z[k])))
+            super::fitting::PreviousPath::fitted_range(z, setup.held_out.as_ref())
         });
         let mut knots = Vec::new();
         for f in output_map_knot_fractions(output_map_knots(pi.thresholds.len())) {

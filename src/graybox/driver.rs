@@ -1306,9 +1306,7 @@ fn part_previous(
     held_out: Option<&std::ops::Range<usize>>,
 ) -> PreviousPath {
     let z = whole.output.as_slice();
-    let range = (0..z.len())
-        .filter(|k| held_out.is_none_or(|r| !r.contains(k)))
-        .fold((0.0f64, 0.0f64), |(a, b), k| (a.min(z[k]), b.max(z[k])));
+    let range = PreviousPath::fitted_range(z, held_out);
     PreviousPath {
         output: std::sync::Arc::new(part.cut(z)),
         spec: whole.spec.clone(),
