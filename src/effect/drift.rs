@@ -161,11 +161,21 @@ struct DriftTerm {
 }
 
 impl DriftTerm {
-    /// The columns over the first `rows` of `samples` samples (the time constants from all).
-    fn new(samples: usize, rows: usize, ts: f64) -> DriftTerm {
-        let span = samples as f64 * ts;
+    /// The columns over the rows of `setup` (the record's first rows, or its blocks one after
+    /// the other, each row at its time in the record); the time constants from all samples.
+    fn new(setup: &OutputSetup) -> DriftTerm {
+        let ts = setup.ts;
+        let span = setup.samples as f64 * ts;
         let taus: Vec<f64> = FIT_TAUS.iter().map(|s| s * span).collect();
-        let t: Vec<f64> = (0..rows).map(|k| k as f64 * ts).collect();
+        let t: Vec<f64> = match setup.blocks {
+            Some(blocks) => blocks
+                .iter()
+                .flat_map(Clone::clone)
+                .map(|k| k as f64 * ts)
+                .collect(),
+            None => (0..setup.rows).map(|k| k as f64 * ts).collect(),
+        };
+        debug_assert_eq!(t.len(), setup.rows);
         let mut columns = vec![t.clone()];
         for tau in &taus {
             columns.push(t.iter().map(|v| 1.0 - (-v / tau).exp()).collect());
@@ -279,11 +289,7 @@ impl Effect for DriftEffect {
         "drift is a function of the time since the experiment started, not of the input: a NARX model of the input cannot hold it (fit it in a grey-box model)"
     }
     fn output_term(&self, setup: &OutputSetup) -> Option<Box<dyn TermFit>> {
-        Some(Box::new(DriftTerm::new(
-            setup.samples,
-            setup.rows,
-            setup.ts,
-        )))
+        Some(Box::new(DriftTerm::new(setup)))
     }
     fn parameter_count(&self, _variant: usize, _plays: usize) -> (usize, usize) {
         (0, 1 + FIT_TAUS.len())
@@ -310,6 +316,29 @@ mod tests {
         assert!((y[2] - (1.0 + 0.5 + 2.0 * (1.0 - (-1.0f64).exp()))).abs() < 1e-12);
         op.reset();
         assert_eq!(op.step(3.0), 3.0);
+    }
+
+    /// On blocks spread over the record, each row's columns are the whole record's at that
+    /// row (its time in the record), the time constants the whole record's.
+    #[test]
+    fn the_columns_on_blocks_are_the_records_at_their_rows() {
+        let setup = |rows, blocks| OutputSetup {
+            samples: 1000,
+            rows,
+            blocks,
+            ts: 0.01,
+            variant: 0,
+            parsimonious: false,
+        };
+        let whole = DriftTerm::new(&setup(1000, None));
+        let blocks = [0..10, 400..410, 990..1000];
+        let part = DriftTerm::new(&setup(30, Some(&blocks)));
+        assert_eq!(part.taus, whole.taus);
+        let rows: Vec<usize> = blocks.iter().flat_map(Clone::clone).collect();
+        for (c, w) in part.columns.iter().zip(&whole.columns) {
+            let at: Vec<f64> = rows.iter().map(|&k| w[k]).collect();
+            assert_eq!(c, &at);
+        }
     }
 
     #[test]

@@ -133,13 +133,15 @@ impl PathSetup<'_> {
 
 /// What an output filter is built from.
 #[derive(Debug, Clone, Copy)]
-pub struct OutputSetup {
+pub struct OutputSetup<'a> {
     /// Samples of the training record.
     pub samples: usize,
     /// The rows the fit runs over: `samples`, or the part of the record on which a long
-    /// record's starts are chosen (choices, such as time constants, still see `samples`;
-    /// drift, a signal of time, is never fitted on blocks spread over the record).
+    /// record's starts are chosen (choices, such as time constants, still see `samples`).
     pub rows: usize,
+    /// Where the part is made of blocks spread over the record, the record's rows of each
+    /// block, one block after the other (a signal of time, drift, takes its times from them).
+    pub blocks: Option<&'a [std::ops::Range<usize>]>,
     /// Sampling period in seconds.
     pub ts: f64,
     /// The variant chosen.

@@ -538,9 +538,9 @@ impl GreyBoxConfig {
     /// (two blocks of the 2,000,000-sample `benches/scale.sh` record chose starts 1,000 times
     /// above the best; 64 the fit of every start on every sample), and the refit on the
     /// whole record settles them; a held-out block's rows (a cross-validation's, a
-    /// diagnosis's refit test's) are left out of the blocks' fit too. `None` where the blocks
-    /// do not show the whole, fewer than two fit, or an effect is a signal of time (drift:
-    /// its columns would need the blocks' times).
+    /// diagnosis's refit test's) are left out of the blocks' fit too; a signal of time
+    /// (drift) takes each block's rows at their times in the record. `None` where the blocks
+    /// do not show the whole or fewer than two fit.
     fn spread_part(
         &self,
         u: &[&[f64]],
@@ -549,13 +549,6 @@ impl GreyBoxConfig {
         n: usize,
     ) -> Option<Vec<std::ops::Range<usize>>> {
         let rows = self.options.starts_part(n)?;
-        if self
-            .chosen()
-            .iter()
-            .any(|c| c.effect.slot() == Slot::OutputTerm)
-        {
-            return None;
-        }
         let k = (rows / SPREAD_BLOCK_ROWS).min(SPREAD_BLOCKS);
         if k < 2 {
             return None;
@@ -873,6 +866,7 @@ impl GreyBoxConfig {
                 (Part::Blocks, Some(b)) => Rows::Blocks {
                     u: b.u.iter().map(Vec::as_slice).collect(),
                     y: &b.y,
+                    at: &b.blocks,
                 },
                 // `part_of` names blocks only where they are set
                 (Part::Blocks, None) => Rows::First(n),
@@ -1533,6 +1527,19 @@ mod tests {
         rec
     }
 
+    /// A protocol in phases: [`periodic`]'s sines over the first half, then held levels with
+    /// a ripple (5,000 samples each); the output the same static map of the input.
+    fn in_phases(n: usize) -> IoRecord {
+        let mut rec = periodic(n);
+        let levels = [0.0, -30.0, 10.0, 30.0, -10.0, 20.0, 5.0, -20.0];
+        for (k, v) in rec.inputs[0].values.iter_mut().enumerate().skip(n / 2) {
+            *v = levels[(k - n / 2) / 5000] + 0.5 * (k as f64 * 0.01).sin();
+        }
+        let u = rec.inputs[0].values.clone();
+        rec.outputs[0].values = u.iter().map(|&v| 0.8 * v + 0.01 * v * v.abs()).collect();
+        rec
+    }
+
     /// The problem of output `y1` of `rec` with `effects` (5 plays), and a point away from
     /// zero in every parameter (creep gains, B, Gamma, f_n, zeta).
     fn problem_at<'a>(
@@ -1728,17 +1735,11 @@ mod tests {
     /// and the best refined on the whole ends within 1 % of the RMSE that every start run on
     /// every sample reaches (the first stage: on this static plant the second stage's
     /// minimum is flat, and from the two first stages it stops 3.4 % apart). A held-out
-    /// block's rows are left out of the blocks' fit; drift (a signal of time) takes no blocks.
+    /// block's rows are left out of the blocks' fit.
     #[test]
     fn a_protocol_in_phases_has_its_starts_chosen_on_blocks_spread_over_it() {
         let n = 80_000;
-        let mut rec = periodic(n);
-        let levels = [0.0, -30.0, 10.0, 30.0, -10.0, 20.0, 5.0, -20.0];
-        for (k, v) in rec.inputs[0].values.iter_mut().enumerate().skip(n / 2) {
-            *v = levels[(k - n / 2) / 5000] + 0.5 * (k as f64 * 0.01).sin();
-        }
-        let u = rec.inputs[0].values.clone();
-        rec.outputs[0].values = u.iter().map(|&v| 0.8 * v + 0.01 * v * v.abs()).collect();
+        let rec = in_phases(n);
         let mut cfg = GreyBoxConfig::from_effect_list("hysteresis,creep,dynamics").unwrap();
         cfg.options.plays = 5;
         cfg.options.output_map = false;
@@ -1786,9 +1787,64 @@ mod tests {
             Some(blocks.clone()),
             "a held-out block keeps the blocks"
         );
-        let mut drift = GreyBoxConfig::from_effect_list("hysteresis,creep,drift").unwrap();
-        drift.options.starts_rows = 1000;
-        assert_eq!(drift.spread_part(&u, &names, rec.ts, n), None, "drift");
+    }
+
+    /// Drift (a signal of time) on blocks spread over the record: each block's rows at their
+    /// times in the record, so that the drift's coefficients mean the same on the blocks as
+    /// on the whole; from the blocks' starts the fit ends within 1 % of the RMSE that every
+    /// start run on every sample reaches, and the fitted drift within 2 % of the output's
+    /// range of it over the record.
+    #[test]
+    fn drift_takes_its_starts_on_blocks_at_their_times_in_the_record() {
+        let n = 80_000;
+        let mut rec = in_phases(n);
+        // a settling of 4 units (time constant a fifth of the record) and a ramp of 2
+        let span = n as f64 * rec.ts;
+        for (k, y) in rec.outputs[0].values.iter_mut().enumerate() {
+            let t = k as f64 * rec.ts;
+            *y += 4.0 * (1.0 - (-t / (0.2 * span)).exp()) + 2.0 * t / span;
+        }
+        let mut cfg = GreyBoxConfig::from_effect_list("hysteresis,drift").unwrap();
+        cfg.options.plays = 5;
+        cfg.options.output_map = false;
+        let all = cfg.fit(&rec).unwrap();
+        cfg.options.starts_rows = 1000;
+        let u = [rec.inputs[0].values.as_slice()];
+        let names = rec.input_names();
+        assert_eq!(cfg.starts_part(&u, &names, rec.ts, n), None, "sines first");
+        let blocks = cfg.spread_part(&u, &names, rec.ts, n).expect("blocks");
+        assert_eq!(blocks.len(), 8);
+        let on_blocks = cfg.fit(&rec).unwrap();
+        let (a, b) = (all.fit.outputs[0].rmse, on_blocks.fit.outputs[0].rmse);
+        assert!(
+            b <= a * 1.01,
+            "on the blocks' starts RMSE {b:.6e}, on every sample's {a:.6e}"
+        );
+        let drift = |m: &FittedGreyBox| {
+            let spec = m.plant.spec.outputs[0]
+                .effects
+                .iter()
+                .find(|e| e.effect() == crate::effect::drift::NAME)
+                .expect("a drift")
+                .clone();
+            let v = serde_json::to_value(&spec).unwrap();
+            let d: crate::effect::drift::DriftSpec = serde_json::from_value(v).unwrap();
+            let d = d.check().unwrap();
+            (0..n)
+                .step_by(100)
+                .map(|k| d.at(k as f64 * rec.ts))
+                .collect::<Vec<f64>>()
+        };
+        let (da, db) = (drift(&all), drift(&on_blocks));
+        let range = crate::metrics::ptp(&rec.outputs[0].values);
+        let worst = da
+            .iter()
+            .zip(&db)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(
+            worst <= 0.02 * range,
+            "drifts {worst:.4} apart, range {range:.2}"
+        );
     }
 
     /// The second stage (Kuhnen's output map) on a long record's first part, refitted on the
@@ -1841,12 +1897,7 @@ mod tests {
         );
         // the same loop under a protocol in phases (sines, then held levels with a ripple):
         // blocks spread over it, a held-out block's rows left out of them
-        let n = 80_000;
-        let mut rec = periodic(n);
-        let levels = [0.0, -30.0, 10.0, 30.0, -10.0, 20.0, 5.0, -20.0];
-        for (k, v) in rec.inputs[0].values.iter_mut().enumerate().skip(n / 2) {
-            *v = levels[(k - n / 2) / 5000] + 0.5 * (k as f64 * 0.01).sin();
-        }
+        let mut rec = in_phases(80_000);
         saturating(&mut rec);
         assert_eq!(part(&rec, 1000), (None, true), "blocks");
         let (a, b) = on_whole_and_part(&rec, Some(60_000..68_000), 1000);

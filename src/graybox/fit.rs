@@ -224,6 +224,7 @@ impl OutputStructure {
                 .filter(&OutputSetup {
                     samples,
                     rows: samples,
+                    blocks: None,
                     ts,
                     variant: c.variant,
                     parsimonious: self.parsimonious,
@@ -344,8 +345,13 @@ pub enum Rows<'a> {
     /// The record's first rows (all of them: `usize::MAX`).
     First(usize),
     /// A part of the record made of blocks spread over it: its inputs and its output over
-    /// those blocks, one after the other (the parameters still come from the whole record).
-    Blocks { u: Vec<&'a [f64]>, y: &'a [f64] },
+    /// those blocks, one after the other (the parameters still come from the whole record),
+    /// and the record's rows of each block (`at`).
+    Blocks {
+        u: Vec<&'a [f64]>,
+        y: &'a [f64],
+        at: &'a [Range<usize>],
+    },
 }
 
 /// Columns filtered together (the resonator's recursion runs up to this many side by side).
@@ -375,12 +381,12 @@ impl<'a> OutputProblem<'a> {
         rows: Rows<'a>,
     ) -> OutputProblem<'a> {
         let n = y.len();
-        let (rows, part_u, part_y) = match rows {
+        let (rows, part_u, part_y, blocks) = match rows {
             Rows::First(r) => {
                 let r = r.min(n);
-                (r, u.iter().map(|v| &v[..r]).collect::<Vec<_>>(), None)
+                (r, u.iter().map(|v| &v[..r]).collect::<Vec<_>>(), None, None)
             }
-            Rows::Blocks { u, y } => (y.len(), u, Some(y)),
+            Rows::Blocks { u, y, at } => (y.len(), u, Some(y), Some(at)),
         };
         // a second stage's first-stage paths run over the rows of the problem
         debug_assert!(structure
@@ -402,6 +408,7 @@ impl<'a> OutputProblem<'a> {
         let setup = |variant| OutputSetup {
             samples: n,
             rows,
+            blocks,
             ts,
             variant,
             parsimonious: structure.parsimonious,
