@@ -1365,7 +1365,7 @@ impl Effect for HysteresisEffect {
     }
     fn term<'a>(&self, setup: &PathSetup<'a>) -> Option<Box<dyn TermFit + 'a>> {
         let u = setup.u;
-        if reversals(setup.whole) < 2 {
+        if reversals_from_rest(setup.whole) < 2 {
             // no loop on this path's input (a cross path driven by a staircase, say): a
             // linear path, the gain column alone; check_record asks one input to reverse
             return Some(Box::new(PiTerm::new(
@@ -1424,13 +1424,14 @@ impl Effect for HysteresisEffect {
         }
         inputs
             .iter()
-            .filter(|u| reversals(u) >= 2)
+            .filter(|u| reversals_from_rest(u) >= 2)
             .map(|u| plays_determined(u, plays, variant))
             .min()
     }
-    /// One input at least must go up and down; the paths of inputs that do not are linear.
+    /// One input at least must go up and down, counted from rest ([`reversals_from_rest`]);
+    /// the paths of inputs that do not are linear.
     fn check_record(&self, rec: &RecordView, _variant: usize) -> Result<(), RecordError> {
-        let revs: Vec<usize> = rec.inputs.iter().map(|u| reversals(u)).collect();
+        let revs: Vec<usize> = rec.inputs.iter().map(|u| reversals_from_rest(u)).collect();
         if revs.iter().any(|&r| r >= 2) {
             return Ok(());
         }
@@ -1447,7 +1448,7 @@ impl Effect for HysteresisEffect {
         };
         Err(RecordError::PoorlyExcited {
             input: name.to_string(),
-            why: format!("it reverses direction {rev} times{others}; a hysteresis loop needs the input to go up and down (at least 2 reversals, better several amplitudes)"),
+            why: format!("from rest (an input of 0) it reverses direction {rev} times{others}; a hysteresis loop needs the input to go up and down (at least 2 reversals, better several amplitudes)"),
         })
     }
 }
@@ -1493,6 +1494,34 @@ pub fn reversals(u: &[f64]) -> usize {
     reversal_samples(u).len()
 }
 
+/// Direction reversals of the path that an operator started at rest follows over `u`: the
+/// [`reversals`] of `u` after an input of 0 (moves below 1e-9 of the range, 0 included,
+/// ignored). The plays and the Bouc-Wen term start relaxed at input 0, so a record whose
+/// first sample lies away from 0 loads them from rest there: a staircase from 4 down to -3
+/// and up to -2 takes the operator through a loading, a reversal and a branch, two
+/// reversals of its path where the record's samples show one.
+pub fn reversals_from_rest(u: &[f64]) -> usize {
+    let (lo, hi) = u
+        .iter()
+        .fold((0.0f64, 0.0f64), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    let tol = 1e-9 * (hi - lo);
+    let mut dir = 0.0;
+    let mut anchor = 0.0;
+    let mut count = 0;
+    for &v in u {
+        let d = v - anchor;
+        if d.abs() > tol {
+            let s = d.signum();
+            if dir != 0.0 && s != dir {
+                count += 1;
+            }
+            dir = s;
+            anchor = v;
+        }
+    }
+    count
+}
+
 /// The samples at which a signal is first seen moving the other way, in order (moves below
 /// 1e-9 of its range ignored): [`reversals`] of them.
 pub fn reversal_samples(u: &[f64]) -> Vec<usize> {
@@ -1518,6 +1547,27 @@ pub fn reversal_samples(u: &[f64]) -> Vec<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An operator starts at rest (input 0): a staircase that starts away from 0 shows its
+    /// path one reversal more than its samples do, a signal that starts at 0 the same.
+    #[test]
+    fn reversals_from_rest_count_the_loading_from_0() {
+        let stairs = [4.0, 4.0, -3.0, -3.0, -2.0, -2.0];
+        assert_eq!((reversals(&stairs), reversals_from_rest(&stairs)), (1, 2));
+        let rising_from_below = [-1.0, 0.5, 2.0];
+        assert_eq!(
+            (
+                reversals(&rising_from_below),
+                reversals_from_rest(&rising_from_below)
+            ),
+            (0, 1)
+        );
+        let sine: Vec<f64> = (0..400).map(|k| (k as f64 * 0.05).sin()).collect();
+        assert_eq!(reversals_from_rest(&sine), reversals(&sine));
+        let ramp: Vec<f64> = (0..10).map(f64::from).collect();
+        assert_eq!(reversals_from_rest(&ramp), 0);
+        assert_eq!(reversals_from_rest(&[]), 0);
+    }
 
     /// `count` columns asked of `ask(rows, state, out)` for each of `rows` in order (one pass,
     /// one state), each column's blocks appended.
