@@ -1729,6 +1729,38 @@ mod tests {
         assert_eq!(held(12_000..18_000), Some(9600), "a block after the part");
     }
 
+    /// `list` (5 plays, no second stage) fitted on every sample of a protocol in phases of
+    /// 80,000 samples, and with its starts on 8 blocks of 1,000 (`starts_rows`), which it must
+    /// take (no first part shows the whole); the second ends within 1 % of the first's RMSE.
+    /// The configuration with the blocks, the blocks and both fits.
+    fn on_every_sample_and_on_blocks(
+        rec: &IoRecord,
+        list: &str,
+    ) -> (
+        GreyBoxConfig,
+        Vec<std::ops::Range<usize>>,
+        (FittedGreyBox, FittedGreyBox),
+    ) {
+        let n = rec.len();
+        let mut cfg = GreyBoxConfig::from_effect_list(list).unwrap();
+        cfg.options.plays = 5;
+        cfg.options.output_map = false;
+        let all = cfg.fit(rec).unwrap();
+        cfg.options.starts_rows = 1000;
+        let u = [rec.inputs[0].values.as_slice()];
+        let names = rec.input_names();
+        assert_eq!(cfg.starts_part(&u, &names, rec.ts, n), None, "sines first");
+        let blocks = cfg.spread_part(&u, &names, rec.ts, n).expect("blocks");
+        assert_eq!(blocks.len(), 8);
+        let on_blocks = cfg.fit(rec).unwrap();
+        let (a, b) = (all.fit.outputs[0].rmse, on_blocks.fit.outputs[0].rmse);
+        assert!(
+            b <= a * 1.01,
+            "{list}: on the blocks' starts RMSE {b:.6e}, on every sample's {a:.6e}"
+        );
+        (cfg, blocks, (all, on_blocks))
+    }
+
     /// A protocol in phases (periodic sines, then a staircase whose levels reach beyond
     /// them) has no first part that shows the whole; its starts are chosen on blocks spread
     /// over it (8 of 1,000 samples here, each later one's first quarter left out of the fit),
@@ -1740,16 +1772,9 @@ mod tests {
     fn a_protocol_in_phases_has_its_starts_chosen_on_blocks_spread_over_it() {
         let n = 80_000;
         let rec = in_phases(n);
-        let mut cfg = GreyBoxConfig::from_effect_list("hysteresis,creep,dynamics").unwrap();
-        cfg.options.plays = 5;
-        cfg.options.output_map = false;
-        let all = cfg.fit(&rec).unwrap();
-        cfg.options.starts_rows = 1000;
+        let (cfg, blocks, _) = on_every_sample_and_on_blocks(&rec, "hysteresis,creep,dynamics");
         let u = [rec.inputs[0].values.as_slice()];
         let names = rec.input_names();
-        assert_eq!(cfg.starts_part(&u, &names, rec.ts, n), None, "sines first");
-        let blocks = cfg.spread_part(&u, &names, rec.ts, n).expect("blocks");
-        assert_eq!(blocks.len(), 8);
         assert!(blocks.iter().all(|b| b.len() == 1000));
         assert_eq!((blocks[0].start, blocks[7].end), (0, n));
         let part = BlockPart::new(&blocks, &u, &rec.outputs[0].values, None, None);
@@ -1761,12 +1786,6 @@ mod tests {
         );
         assert!(part.excluded[1000..1250].iter().all(|&m| m), "a warm-up");
         assert_eq!(part.excluded.iter().filter(|&&m| m).count(), 7 * 250);
-        let on_blocks = cfg.fit(&rec).unwrap();
-        let (a, b) = (all.fit.outputs[0].rmse, on_blocks.fit.outputs[0].rmse);
-        assert!(
-            b <= a * 1.01,
-            "on the blocks' starts RMSE {b:.6e}, on every sample's {a:.6e}"
-        );
         // a held-out block: its rows of the blocks left out too (the block at 67,714)
         let held = BlockPart::new(
             &blocks,
@@ -1804,22 +1823,7 @@ mod tests {
             let t = k as f64 * rec.ts;
             *y += 4.0 * (1.0 - (-t / (0.2 * span)).exp()) + 2.0 * t / span;
         }
-        let mut cfg = GreyBoxConfig::from_effect_list("hysteresis,drift").unwrap();
-        cfg.options.plays = 5;
-        cfg.options.output_map = false;
-        let all = cfg.fit(&rec).unwrap();
-        cfg.options.starts_rows = 1000;
-        let u = [rec.inputs[0].values.as_slice()];
-        let names = rec.input_names();
-        assert_eq!(cfg.starts_part(&u, &names, rec.ts, n), None, "sines first");
-        let blocks = cfg.spread_part(&u, &names, rec.ts, n).expect("blocks");
-        assert_eq!(blocks.len(), 8);
-        let on_blocks = cfg.fit(&rec).unwrap();
-        let (a, b) = (all.fit.outputs[0].rmse, on_blocks.fit.outputs[0].rmse);
-        assert!(
-            b <= a * 1.01,
-            "on the blocks' starts RMSE {b:.6e}, on every sample's {a:.6e}"
-        );
+        let (_, _, (all, on_blocks)) = on_every_sample_and_on_blocks(&rec, "hysteresis,drift");
         let drift = |m: &FittedGreyBox| {
             let spec = m.plant.spec.outputs[0]
                 .effects
