@@ -1504,32 +1504,21 @@ pub fn reversals_from_rest(u: &[f64]) -> usize {
     let (lo, hi) = u
         .iter()
         .fold((0.0f64, 0.0f64), |(lo, hi), &v| (lo.min(v), hi.max(v)));
-    let tol = 1e-9 * (hi - lo);
-    let mut dir = 0.0;
-    let mut anchor = 0.0;
-    let mut count = 0;
-    for &v in u {
-        let d = v - anchor;
-        if d.abs() > tol {
-            let s = d.signum();
-            if dir != 0.0 && s != dir {
-                count += 1;
-            }
-            dir = s;
-            anchor = v;
-        }
-    }
-    count
+    reversals_after(u, 0.0, 1e-9 * (hi - lo)).len()
 }
 
 /// The samples at which a signal is first seen moving the other way, in order (moves below
 /// 1e-9 of its range ignored): [`reversals`] of them.
 pub fn reversal_samples(u: &[f64]) -> Vec<usize> {
-    let ptp = crate::metrics::ptp(u);
-    let tol = 1e-9 * ptp;
+    let start = u.first().copied().unwrap_or(0.0);
+    reversals_after(u, start, 1e-9 * crate::metrics::ptp(u))
+}
+
+/// The samples at which `u`, coming from `anchor`, is first seen moving the other way, in
+/// order (moves of `tol` or less ignored).
+fn reversals_after(u: &[f64], mut anchor: f64, tol: f64) -> Vec<usize> {
     let mut dir = 0.0;
     let mut at = Vec::new();
-    let mut anchor = u.first().copied().unwrap_or(0.0);
     for (k, &v) in u.iter().enumerate() {
         let d = v - anchor;
         if d.abs() > tol {
