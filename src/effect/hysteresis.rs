@@ -1501,10 +1501,8 @@ pub fn reversals(u: &[f64]) -> usize {
 /// and up to -2 takes the operator through a loading, a reversal and a branch, two
 /// reversals of its path where the record's samples show one.
 pub fn reversals_from_rest(u: &[f64]) -> usize {
-    let (lo, hi) = u
-        .iter()
-        .fold((0.0f64, 0.0f64), |(lo, hi), &v| (lo.min(v), hi.max(v)));
-    reversals_after(u, 0.0, 1e-9 * (hi - lo)).len()
+    let (lo, hi) = crate::metrics::min_max(u);
+    reversals_after(u, 0.0, 1e-9 * (hi.max(0.0) - lo.min(0.0))).len()
 }
 
 /// The samples at which a signal is first seen moving the other way, in order (moves below
