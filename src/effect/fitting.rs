@@ -174,6 +174,11 @@ pub trait TermFit: Send + Sync {
     fn param_names(&self) -> Vec<&'static str> {
         Vec::new()
     }
+    /// The interval each parameter is kept inside (Levenberg-Marquardt's steps are projected
+    /// onto it); unbounded by default.
+    fn param_bounds(&self) -> Vec<(f64, f64)> {
+        vec![(f64::NEG_INFINITY, f64::INFINITY); self.n_params()]
+    }
     /// Joint static starting grid: point i of every term is tried together, on the model
     /// without the filters that [`FilterFit::off_when_static`] (empty: no grid).
     fn start_grid(&self) -> Vec<Vec<f64>> {

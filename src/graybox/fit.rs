@@ -594,6 +594,18 @@ impl<'a> OutputProblem<'a> {
         self
     }
 
+    /// Per parameter, the interval its term keeps it inside (`TermFit::param_bounds`; the
+    /// filters' are unbounded).
+    pub fn bounds(&self) -> Vec<(f64, f64)> {
+        let mut b = vec![(f64::NEG_INFINITY, f64::INFINITY); self.layout.n_theta];
+        for t in self.layout.terms() {
+            for (q, v) in t.params.clone().zip(t.term.param_bounds()) {
+                b[q] = v;
+            }
+        }
+        b
+    }
+
     /// The same problem with a relative ridge `lambda` on the terms' coefficients.
     pub fn with_ridge(mut self, lambda: f64) -> Self {
         self.ridge = lambda.max(0.0);
@@ -1562,6 +1574,9 @@ impl LeastSquares for WithDynamics<'_, '_> {
     }
     fn residual_norm(&self, ev: &Eval) -> f64 {
         (2.0 * ev.cost).sqrt()
+    }
+    fn bounds(&self) -> Option<Vec<(f64, f64)>> {
+        Some(self.0.bounds())
     }
 }
 

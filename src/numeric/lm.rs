@@ -26,6 +26,10 @@ pub trait LeastSquares {
     ) -> Option<(DMatrix<f64>, DVector<f64>)>;
     /// The residual's Euclidean norm (for the gradient test).
     fn residual_norm(&self, eval: &Self::Eval) -> f64;
+    /// Per parameter, the interval a step is projected onto (`None`: unbounded).
+    fn bounds(&self) -> Option<Vec<(f64, f64)>> {
+        None
+    }
 }
 
 /// A least-squares problem given by its residual `model - data` alone: the cost is the RMS
@@ -190,6 +194,7 @@ pub fn levenberg_marquardt<P: LeastSquares>(
     if p == 0 {
         return done(theta, eval, 0, LmStop::NoFreeParameter);
     }
+    let bounds = problem.bounds();
     let mut lambda = s.lambda_start;
     let mut dmax = vec![0.0f64; p];
     let mut small = 0;
@@ -197,7 +202,7 @@ pub fn levenberg_marquardt<P: LeastSquares>(
         if problem.cost(&eval) <= s.zero_cost {
             return done(theta, eval, it - 1, LmStop::ZeroResidual);
         }
-        let Some((a, g)) = problem.normal_equations(&theta, &eval, free) else {
+        let Some((mut a, mut g)) = problem.normal_equations(&theta, &eval, free) else {
             return done(theta, eval, it, LmStop::NoJacobian);
         };
         let scale: &[f64] = match s.scaling {
@@ -214,6 +219,9 @@ pub fn levenberg_marquardt<P: LeastSquares>(
                 &dmax
             }
         };
+        if let Some(b) = &bounds {
+            pin_at_bounds(&mut a, &mut g, &theta, free, b);
+        }
         if s.gradient_tolerance > 0.0
             && max_cosine(&a, &g, problem.residual_norm(&eval)) < s.gradient_tolerance
         {
@@ -235,6 +243,9 @@ pub fn levenberg_marquardt<P: LeastSquares>(
             let mut trial = theta.clone();
             for (k, &i) in free.iter().enumerate() {
                 trial[i] = (theta[i] + step[k]).clamp(-s.bound, s.bound);
+                if let Some((lo, hi)) = bounds.as_ref().map(|b| b[i]) {
+                    trial[i] = trial[i].clamp(lo, hi);
+                }
             }
             match problem.eval(&trial) {
                 Some(e) if problem.cost(&e) < problem.cost(&eval) => {
@@ -265,6 +276,27 @@ pub fn levenberg_marquardt<P: LeastSquares>(
     done(theta, eval, s.max_iterations, LmStop::MaxIterations)
 }
 
+/// A parameter on its bound whose descent direction points out of it takes no part in the
+/// step (an active set): its row and column of the normal equations are cleared, its
+/// gradient set to 0, so that the others move as the bound lets them.
+fn pin_at_bounds(
+    a: &mut DMatrix<f64>,
+    g: &mut DVector<f64>,
+    theta: &[f64],
+    free: &[usize],
+    bounds: &[(f64, f64)],
+) {
+    for (k, &i) in free.iter().enumerate() {
+        let (lo, hi) = bounds[i];
+        if (theta[i] <= lo && g[k] < 0.0) || (theta[i] >= hi && g[k] > 0.0) {
+            a.row_mut(k).fill(0.0);
+            a.column_mut(k).fill(0.0);
+            a[(k, k)] = 1.0;
+            g[k] = 0.0;
+        }
+    }
+}
+
 /// The largest cosine between the residual (norm `rnorm`) and a Jacobian column.
 fn max_cosine(a: &DMatrix<f64>, g: &DVector<f64>, rnorm: f64) -> f64 {
     (0..g.len())
@@ -287,6 +319,7 @@ mod tests {
     struct Exponential {
         t: Vec<f64>,
         y: Vec<f64>,
+        bounds: Option<Vec<(f64, f64)>>,
     }
 
     impl LeastSquares for Exponential {
@@ -318,6 +351,9 @@ mod tests {
         fn residual_norm(&self, r: &Vec<f64>) -> f64 {
             r.iter().map(|v| v * v).sum::<f64>().sqrt()
         }
+        fn bounds(&self) -> Option<Vec<(f64, f64)>> {
+            self.bounds.clone()
+        }
     }
 
     fn settings() -> LmSettings {
@@ -333,7 +369,7 @@ mod tests {
     fn recovers_an_exponential_from_a_distant_start() {
         let t: Vec<f64> = (0..40).map(|k| k as f64 * 0.05).collect();
         let y = t.iter().map(|t| 2.5 * (-1.3 * t).exp()).collect();
-        let prob = Exponential { t, y };
+        let prob = Exponential { t, y, bounds: None };
         let th0 = vec![1.0, 0.0];
         let e0 = prob.eval(&th0).unwrap();
         for scaling in [Scaling::RunningMax, Scaling::Current] {
@@ -348,11 +384,57 @@ mod tests {
         }
     }
 
+    /// A bound the unconstrained minimum lies beyond: the steps are projected onto it, the fit
+    /// ends on it with the other parameter at its best there.
+    #[test]
+    fn a_bounded_parameter_ends_on_its_bound() {
+        let t: Vec<f64> = (0..40).map(|k| k as f64 * 0.05).collect();
+        let y = t.iter().map(|t| 2.5 * (-1.3 * t).exp()).collect();
+        let prob = Exponential {
+            t,
+            y,
+            bounds: Some(vec![(f64::NEG_INFINITY, 2.0), (f64::NEG_INFINITY, 0.0)]),
+        };
+        let th0 = vec![1.0, 0.0];
+        let out = levenberg_marquardt(
+            &prob,
+            th0.clone(),
+            prob.eval(&th0).unwrap(),
+            &[0, 1],
+            &settings(),
+        );
+        assert_eq!(out.theta[0], 2.0, "{:?}", out.theta);
+        assert!(
+            out.theta[1] < -1.0 && out.theta[1] > -1.3,
+            "{:?}",
+            out.theta
+        );
+        // the best rate for an amplitude of 2: a one-parameter fit from there agrees
+        let free = Exponential {
+            bounds: None,
+            ..prob
+        };
+        let th = vec![2.0, out.theta[1]];
+        let one = levenberg_marquardt(
+            &free,
+            th.clone(),
+            free.eval(&th).unwrap(),
+            &[1],
+            &settings(),
+        );
+        assert!(
+            (one.theta[1] - out.theta[1]).abs() < 1e-6,
+            "{:?} {:?}",
+            one.theta,
+            out.theta
+        );
+    }
+
     #[test]
     fn held_parameters_do_not_move_and_no_free_parameter_stops_at_once() {
         let t: Vec<f64> = (0..20).map(|k| k as f64 * 0.1).collect();
         let y = t.iter().map(|t| 3.0 * (-0.5 * t).exp()).collect();
-        let prob = Exponential { t, y };
+        let prob = Exponential { t, y, bounds: None };
         let th0 = vec![1.0, -0.5];
         let out = levenberg_marquardt(
             &prob,
@@ -377,7 +459,7 @@ mod tests {
     fn the_iteration_budget_is_reported_as_not_converged() {
         let t: Vec<f64> = (0..40).map(|k| k as f64 * 0.05).collect();
         let y = t.iter().map(|t| 2.5 * (-1.3 * t).exp()).collect();
-        let prob = Exponential { t, y };
+        let prob = Exponential { t, y, bounds: None };
         let th0 = vec![1.0, 0.0];
         let s = LmSettings {
             max_iterations: 1,
