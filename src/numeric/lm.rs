@@ -365,6 +365,12 @@ mod tests {
         }
     }
 
+    /// Levenberg-Marquardt on `prob` from `th` over `free` with the tests' settings.
+    fn fit(prob: &Exponential, th: &[f64], free: &[usize]) -> LmOutcome<Vec<f64>> {
+        let e = prob.eval(th).unwrap();
+        levenberg_marquardt(prob, th.to_vec(), e, free, &settings())
+    }
+
     #[test]
     fn recovers_an_exponential_from_a_distant_start() {
         let t: Vec<f64> = (0..40).map(|k| k as f64 * 0.05).collect();
@@ -396,13 +402,7 @@ mod tests {
             bounds: Some(vec![(f64::NEG_INFINITY, 2.0), (f64::NEG_INFINITY, 0.0)]),
         };
         let th0 = vec![1.0, 0.0];
-        let out = levenberg_marquardt(
-            &prob,
-            th0.clone(),
-            prob.eval(&th0).unwrap(),
-            &[0, 1],
-            &settings(),
-        );
+        let out = fit(&prob, &th0, &[0, 1]);
         assert_eq!(out.theta[0], 2.0, "{:?}", out.theta);
         assert!(
             out.theta[1] < -1.0 && out.theta[1] > -1.3,
@@ -415,13 +415,7 @@ mod tests {
             ..prob
         };
         let th = vec![2.0, out.theta[1]];
-        let one = levenberg_marquardt(
-            &free,
-            th.clone(),
-            free.eval(&th).unwrap(),
-            &[1],
-            &settings(),
-        );
+        let one = fit(&free, &th, &[1]);
         assert!(
             (one.theta[1] - out.theta[1]).abs() < 1e-6,
             "{:?} {:?}",
@@ -436,22 +430,10 @@ mod tests {
         let y = t.iter().map(|t| 3.0 * (-0.5 * t).exp()).collect();
         let prob = Exponential { t, y, bounds: None };
         let th0 = vec![1.0, -0.5];
-        let out = levenberg_marquardt(
-            &prob,
-            th0.clone(),
-            prob.eval(&th0).unwrap(),
-            &[0],
-            &settings(),
-        );
+        let out = fit(&prob, &th0, &[0]);
         assert_eq!(out.theta[1], -0.5);
         assert!((out.theta[0] - 3.0).abs() < 1e-10);
-        let none = levenberg_marquardt(
-            &prob,
-            th0.clone(),
-            prob.eval(&th0).unwrap(),
-            &[],
-            &settings(),
-        );
+        let none = fit(&prob, &th0, &[]);
         assert_eq!((none.stop, none.iterations), (LmStop::NoFreeParameter, 0));
     }
 
