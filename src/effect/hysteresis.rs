@@ -1034,24 +1034,35 @@ impl<'a> OutputMapTerm<'a> {
     /// otherwise free to take a large weight of the other sign that cancels the output map's
     /// bend in training and blows up where a test input swings wider (held-out zoo seed 1019,
     /// member 23: a weight of -3.0 beside first-stage weights of 0.05-0.14, test R^2 -11.6).
+    /// The fit keeps the increments inside [`OutputMapTerm::play_bounds`]; the model holds
+    /// any increment given outside them (a start, a copy) on its bound too.
     fn weights_of(&self, th: &[f64]) -> Vec<f64> {
         let mut w = th[bw_n_params(self.bw)..].to_vec();
         for (t, &w0) in w[1..].iter_mut().zip(&self.pi.weights) {
-            if self.sign * (w0 + *t) < 0.0 {
-                *t = -w0;
-            }
+            let (lo, hi) = self.play_bounds(w0);
+            *t = t.clamp(lo, hi);
         }
         w
     }
 
-    /// Whether the operator parameter `q` (of this term's) is a play held at a weight of 0
+    /// The interval of a play's increment that keeps its weight `w0 + increment` of the
+    /// path's sign (`w0`: the first stage's weight, of that sign).
+    fn play_bounds(&self, w0: f64) -> (f64, f64) {
+        if self.sign > 0.0 {
+            (-w0, f64::INFINITY)
+        } else {
+            (f64::NEG_INFINITY, -w0)
+        }
+    }
+
+    /// Whether the operator parameter `q` (of this term's) is a play held on its bound
     /// ([`OutputMapTerm::weights_of`]): its derivative is 0.
     fn held(&self, th: &[f64], q: usize) -> bool {
         let k = q.wrapping_sub(bw_n_params(self.bw) + 1);
-        self.pi
-            .weights
-            .get(k)
-            .is_some_and(|&w0| self.sign * (w0 + th[q]) < 0.0)
+        self.pi.weights.get(k).is_some_and(|&w0| {
+            let (lo, hi) = self.play_bounds(w0);
+            th[q] < lo || th[q] > hi
+        })
     }
 
     /// S'(z[k]) at operator weights `w` and map slopes `s` (cached: each weight's derivative
@@ -1126,10 +1137,11 @@ impl TermFit for OutputMapTerm<'_> {
     fn param_bounds(&self) -> Vec<(f64, f64)> {
         let free = (f64::NEG_INFINITY, f64::INFINITY);
         let mut b = vec![free; bw_n_params(self.bw) + 1];
-        b.extend((0..self.x_len()).map(|k| match self.pi.weights.get(k) {
-            Some(&w0) if self.sign > 0.0 => (-w0, f64::INFINITY),
-            Some(&w0) => (f64::NEG_INFINITY, -w0),
-            None => free,
+        b.extend((0..self.x_len()).map(|k| {
+            self.pi
+                .weights
+                .get(k)
+                .map_or(free, |&w0| self.play_bounds(w0))
         }));
         b
     }
@@ -1861,6 +1873,10 @@ mod tests {
         let (_, prev) = first_stage_of(&u);
         let setup = map_setup(&u, &prev);
         let t = OutputMapTerm::new(&setup, &prev, 3.0).unwrap();
+        // the fit's bounds: the play's increment down to -0.5 (its weight 0.5), the linear
+        // weight (the path's gain) free
+        let inf = f64::INFINITY;
+        assert_eq!(t.param_bounds(), vec![(-inf, inf), (-0.5, inf)]);
         let coef = vec![1.0; t.n_columns()];
         let weight = |th: &[f64]| match t
             .spec(th, 0.0, &coef)
