@@ -113,6 +113,31 @@ fn a_2dof_record_with_new_input_combinations_in_its_test_half_is_identified() {
     assert!(e.contains("grey-box base"), "{e}");
 }
 
+/// A record and its negation (every output's sign reversed: a sensor of the other polarity)
+/// are identified alike: the grey-box base mirrors its loops (`HysteresisSpec::negated`), so
+/// the same lists fit them as well and the free-run test R^2 agree.
+#[test]
+fn a_record_and_its_negation_are_identified_alike() {
+    let rec = am_2dof();
+    let mut neg = rec.clone();
+    for o in &mut neg.outputs {
+        o.values.iter_mut().for_each(|v| *v = -*v);
+    }
+    let (_, _, r2) = identify_first_half(&rec);
+    let (m, _, r2_neg) = identify_first_half(&neg);
+    eprintln!("{:?}", m.base.as_ref().map(|b| &b.outputs));
+    for (o, (a, b)) in r2.iter().zip(&r2_neg).enumerate() {
+        assert!(
+            *b >= 0.99,
+            "output {o}: the negation's free-run test R^2 {b}"
+        );
+        assert!(
+            (a - b).abs() < 2e-3,
+            "output {o}: R^2 {a} and, negated, {b}"
+        );
+    }
+}
+
 /// `identify` reports the choice (`greybox` in `--json`, a line per output in text) and
 /// `--greybox off` fits networks only.
 #[test]

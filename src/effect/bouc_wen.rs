@@ -10,6 +10,11 @@
 //! Bounded and with a physical loop when A > 0, B + Gamma > 0 and B >= |Gamma|; then, with
 //! h(0) = 0 and n = 1, |h| <= A / (B + Gamma).
 //!
+//! A negative A is a path of negative gain (a reversed polarity, a cross path that bends the
+//! other way): h/A is unchanged when A changes sign with Gamma, so h(A, B, Gamma) =
+//! -h(|A|, B, -Gamma), and the plant d u - h with d, A and Gamma negated is the negated plant.
+//! Its conditions are those of the mirror: B >= |Gamma| and B - Gamma > 0, |h| <= |A| / (B - Gamma).
+//!
 //! ## References
 //! - M. Rakotondrabe, IEEE T-ASE 8(2):428-431, 2011.
 //! - C.-J. Lin, S.-R. Yang; F. Ikhouane, V. Manosa, J. Rodellar, "Dynamic properties of the
@@ -17,7 +22,7 @@
 //! - M. Ismail, F. Ikhouane, J. Rodellar, "The hysteresis Bouc-Wen model, a survey",
 //!   Arch. Comput. Methods Eng. 16:161-188, 2009.
 
-use super::{finite, positive, EffectError, Operator};
+use super::{finite, EffectError, Operator};
 use serde::{Deserialize, Serialize};
 
 fn one() -> f64 {
@@ -75,7 +80,16 @@ impl BoucWenSpec {
     /// Check the stability and boundedness conditions.
     pub fn check(&self) -> Result<BoucWen, EffectError> {
         finite("d", self.d)?;
-        positive("A", self.a)?;
+        finite("A", self.a)?;
+        if self.a == 0.0 {
+            return Err(EffectError::Invalid {
+                field: "A".into(),
+                value: self.a,
+                rule: "must not be 0 (no loop: write a linear path); a negative A is a path of \
+                       negative gain"
+                    .into(),
+            });
+        }
         finite("B", self.b)?;
         finite("Gamma", self.gamma)?;
         finite("initial_h", self.initial_h)?;
@@ -89,11 +103,18 @@ impl BoucWenSpec {
                 ),
             });
         }
-        if self.b + self.gamma <= 0.0 {
+        if self.b + self.a.signum() * self.gamma <= 0.0 {
             return Err(EffectError::Invalid {
                 field: "B".into(),
                 value: self.b,
-                rule: format!("B + Gamma must be > 0 (Gamma = {})", self.gamma),
+                rule: if self.a > 0.0 {
+                    format!("B + Gamma must be > 0 (Gamma = {})", self.gamma)
+                } else {
+                    format!(
+                        "B - Gamma must be > 0 with a negative A (the mirrored loop; Gamma = {})",
+                        self.gamma
+                    )
+                },
             });
         }
         if !(self.n.is_finite() && self.n >= 1.0) {
@@ -115,26 +136,42 @@ impl BoucWenSpec {
 }
 
 impl BoucWen {
-    /// The bound A / (B + Gamma) on |h| (n = 1, h(0) = 0).
+    /// The bound |A| / (B + sgn(A) Gamma) on |h| (n = 1, h(0) = 0).
     pub fn h_bound(&self) -> f64 {
-        self.a / (self.b + self.gamma)
+        self.a.abs() / (self.b + self.a.signum() * self.gamma)
+    }
+
+    /// The loop of positive A that this one mirrors (itself when A > 0): A, Gamma and
+    /// initial_h times sgn(A).
+    fn mirror(&self) -> BoucWen {
+        let s = self.a.signum();
+        BoucWen {
+            a: s * self.a,
+            gamma: s * self.gamma,
+            initial_h: s * self.initial_h,
+            ..*self
+        }
     }
 
     /// The operator at rest: input 0 and h = initial_h (the first sample is reached along a
     /// straight path from 0).
     pub fn operator(&self) -> BoucWenOp {
+        let p = self.mirror();
         BoucWenOp {
-            p: *self,
-            h: self.initial_h,
+            p,
+            sign: self.a.signum(),
+            h: p.initial_h,
             u_prev: 0.0,
         }
     }
 }
 
-/// A running Bouc-Wen operator: output d u - h.
+/// A running Bouc-Wen operator: output d u - h, h = sign h~ where h~ runs the loop of
+/// positive A ([`BoucWen::mirror`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BoucWenOp {
     p: BoucWen,
+    sign: f64,
     h: f64,
     u_prev: f64,
 }
@@ -215,7 +252,7 @@ impl Operator for BoucWenOp {
             };
         }
         self.u_prev = u;
-        self.p.d * u - self.h
+        self.p.d * u - self.sign * self.h
     }
 }
 
@@ -308,7 +345,50 @@ mod tests {
         s.b = f64::NAN;
         assert!(s.check().is_err());
         s.b = 0.03;
-        s.a = -1.0;
+        s.a = 0.0;
         assert!(s.check().unwrap_err().to_string().contains("`A`"));
+        // a negative A mirrors the loop: B - Gamma must be > 0
+        s.a = -1.0;
+        s.gamma = 0.03;
+        let e = s.check().unwrap_err().to_string();
+        assert!(e.contains("B - Gamma"), "{e}");
+    }
+
+    /// d, A and Gamma negated give the negated plant, for n = 1 (the exact update) and n = 2
+    /// (RK4), from rest and from a loaded initial state.
+    #[test]
+    fn a_negative_a_is_the_negated_plant() {
+        let u: Vec<f64> = (0..600)
+            .map(|k| 30.0 * (k as f64 * 0.025).sin() + 8.0 * (k as f64 * 0.11).cos())
+            .collect();
+        for (n, b, gamma, h0) in [(1.0, 0.02, 0.012, 0.0), (2.0, 0.004, -0.003, 0.5)] {
+            let pos = BoucWenSpec {
+                d: 0.8,
+                a: 0.3,
+                b,
+                gamma,
+                n,
+                initial_h: h0,
+            };
+            let neg = BoucWenSpec {
+                d: -pos.d,
+                a: -pos.a,
+                gamma: -pos.gamma,
+                initial_h: -pos.initial_h,
+                ..pos
+            };
+            let (p, q) = (pos.check().unwrap(), neg.check().unwrap());
+            assert_eq!(p.h_bound(), q.h_bound());
+            let (yp, yq) = (p.operator().apply(&u), q.operator().apply(&u));
+            assert!(yp.iter().zip(&yq).all(|(a, b)| *a == -*b), "n = {n}");
+            // and it is the negative-A equation itself, integrated finely
+            let y_ref = euler(&q, &u, 2000);
+            let err = yq
+                .iter()
+                .zip(&y_ref)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(h0 != 0.0 || err < 2e-3, "n = {n}: max error {err}");
+        }
     }
 }

@@ -13,6 +13,9 @@ pub struct DrawContext {
     pub input_amplitude: f64,
     /// The direct path of an output, or a cross path (another axis' input).
     pub role: PathRole,
+    /// The sign of the path's gain: -1 for a reversed polarity, or a cross path that bends
+    /// the other way (a path term draws its magnitude, then this sign).
+    pub sign: f64,
 }
 
 /// Which path of an output is drawn.

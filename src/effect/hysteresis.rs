@@ -61,6 +61,41 @@ impl HysteresisSpec {
             HysteresisSpec::Linear(s) => Hysteresis::Linear(finite("linear.gain", s.gain)?),
         })
     }
+
+    /// The operator of the negated output, -H[u] (a reversed polarity, a cross path that bends
+    /// the other way): a Bouc-Wen loop with d, A, Gamma and h(0) negated
+    /// ([`crate::effect::bouc_wen`]); a Prandtl-Ishlinskii operator with its weights (plays,
+    /// the input itself, the input map) negated and its dead zones mirrored, d_j -> -d_j
+    /// (-S[-z] = sum_j c_j S_{-d_j}(z), increasing as S is); a gain negated.
+    pub fn negated(&self) -> HysteresisSpec {
+        match self {
+            HysteresisSpec::BoucWen(s) => HysteresisSpec::BoucWen(BoucWenSpec {
+                d: -s.d,
+                a: -s.a,
+                gamma: -s.gamma,
+                initial_h: -s.initial_h,
+                ..*s
+            }),
+            HysteresisSpec::PrandtlIshlinskii(s) => {
+                let neg = |w: &[f64]| w.iter().map(|w| -w).collect();
+                HysteresisSpec::PrandtlIshlinskii(PrandtlIshlinskiiSpec {
+                    linear_weight: -s.linear_weight,
+                    thresholds: s.thresholds.clone(),
+                    weights: neg(&s.weights),
+                    initial_state: s.initial_state,
+                    input_map: s.input_map.as_ref().map(|m| DeadZoneSpec {
+                        thresholds: m.thresholds.clone(),
+                        weights: neg(&m.weights),
+                    }),
+                    dead_zones: s.dead_zones.as_ref().map(|d| DeadZoneSpec {
+                        thresholds: d.thresholds.iter().rev().map(|t| -t).collect(),
+                        weights: d.weights.iter().rev().copied().collect(),
+                    }),
+                })
+            }
+            HysteresisSpec::Linear(s) => HysteresisSpec::Linear(LinearSpec { gain: -s.gain }),
+        }
+    }
 }
 
 impl Hysteresis {
@@ -208,14 +243,25 @@ fn bouc_wen_term_spec(a: f64, b: f64, gamma: f64, d: f64) -> HysteresisSpec {
 /// | saturating Prandtl-Ishlinskii | 15 % | as above, dead zones at +-0.45 Y and +-0.75 Y taking 30-45 % and 25-40 % off the slope |
 ///
 /// A cross path is linear (its gain) in 2 of 5 plants, else one of the families above; its
-/// gain is the direct gain times the context's relative gain.
+/// gain is the direct gain times the context's relative gain. The operator is then negated
+/// ([`HysteresisSpec::negated`]) on a path of negative sign (`ctx.sign`).
 pub fn draw(ctx: &DrawContext, dice: &mut Dice) -> HysteresisSpec {
-    let u = ctx.input_amplitude;
     let d = dice.log_uniform(0.05, 1.5)
         * match ctx.role {
             PathRole::Direct => 1.0,
             PathRole::Cross { relative_gain } => relative_gain,
         };
+    let spec = draw_positive(ctx, dice, d);
+    if ctx.sign < 0.0 {
+        spec.negated()
+    } else {
+        spec
+    }
+}
+
+/// [`draw`]'s operator of positive gain `d`.
+fn draw_positive(ctx: &DrawContext, dice: &mut Dice, d: f64) -> HysteresisSpec {
+    let u = ctx.input_amplitude;
     if matches!(ctx.role, PathRole::Cross { .. }) && dice.chance(0.4) {
         return HysteresisSpec::Linear(LinearSpec { gain: d });
     }
@@ -273,19 +319,44 @@ pub fn draw(ctx: &DrawContext, dice: &mut Dice) -> HysteresisSpec {
     }
 }
 
+/// A grey-box Bouc-Wen column: the scale of its B (the input's range) and the path's sign.
+/// The column is sign (-h~) of A = 1, its weight c >= 0: on a path of negative gain it is the
+/// mirrored loop, written A = -c, Gamma = -Gamma ([`crate::effect::bouc_wen`]), so that the
+/// loop's shape has the same parameters on either sign ([`bw_spec`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Bw {
+    range: f64,
+    sign: f64,
+}
+
+/// The column of `bw` at `th` ([`Bw`]).
+fn bw_column(u: &[f64], bw: Bw, th: &[f64]) -> Vec<f64> {
+    let (b, g) = bouc_wen_params(th, bw.range);
+    let mut c = bouc_wen_column(u, b, g);
+    if bw.sign < 0.0 {
+        c.iter_mut().for_each(|v| *v = -*v);
+    }
+    c
+}
+
+/// The Bouc-Wen term of weight `c` >= 0 on the column of `bw` at `th`, with gain `d`.
+fn bw_spec(bw: Bw, th: &[f64], c: f64, d: f64) -> HysteresisSpec {
+    let (b, g) = bouc_wen_params(th, bw.range);
+    bouc_wen_term_spec(bw.sign * c, b, bw.sign * g, d)
+}
+
 /// d/d theta_q of a_coef * (Bouc-Wen column) by a forward difference.
 fn bouc_wen_derivative(
     u: &[f64],
     th: &[f64],
     q: usize,
-    range: f64,
+    bw: Bw,
     base: &[f64],
     a_coef: f64,
 ) -> Vec<f64> {
     let mut t2 = th.to_vec();
     t2[q] += FD_STEP;
-    let (b, g) = bouc_wen_params(&t2, range);
-    let c1 = bouc_wen_column(u, b, g);
+    let c1 = bw_column(u, bw, &t2);
     c1.iter()
         .zip(base.iter())
         .map(|(x, y)| a_coef * (x - y) / FD_STEP)
@@ -306,8 +377,8 @@ fn bouc_wen_grid() -> Vec<Vec<f64>> {
 }
 
 /// Prandtl-Ishlinskii plays (weights >= 0, sharing the sign of the path's gain), for the default
-/// operator the ramps of a static input map (weights of either sign) and, on a positive path,
-/// one Bouc-Wen column (A >= 0). Column order: plays, ramps, Bouc-Wen.
+/// operator the ramps of a static input map (weights of either sign) and one Bouc-Wen column
+/// (its weight >= 0, the loop mirrored on a negative path: [`Bw`]). Column order: plays, ramps, Bouc-Wen.
 ///
 /// The plays and ramps are kept whole up to [`CACHED_COLUMNS_BYTES`]; beyond, a long record's
 /// columns are computed where asked, a block of rows at a time ([`TermFit::columns_block`]),
@@ -325,7 +396,7 @@ struct PiTerm<'a> {
     /// derivatives follow an evaluation at the same point).
     bw_memo: BwMemo,
     /// The Bouc-Wen column's input range, when there is one.
-    bw: Option<f64>,
+    bw: Option<Bw>,
 }
 
 /// Ramps of the static input map beside `plays` plays: 8 with 39 plays, fewer on the shorter
@@ -377,10 +448,10 @@ pub fn input_map_knots_by_levels(u: &[f64], values: &[f64], n: usize) -> Vec<f64
     kept
 }
 
-/// The optional Bouc-Wen column beside a Prandtl-Ishlinskii term (the default operator's
-/// positive paths; `Some(input range)`): its nonlinear parameters, start grid, column, and
-/// the extra path it writes when its weight A is positive.
-fn bw_n_params(bw: Option<f64>) -> usize {
+/// The optional Bouc-Wen column beside a Prandtl-Ishlinskii term (the default operator):
+/// its nonlinear parameters, start grid, column, and the extra path it writes when its
+/// weight is positive.
+fn bw_n_params(bw: Option<Bw>) -> usize {
     if bw.is_some() {
         2
     } else {
@@ -388,7 +459,7 @@ fn bw_n_params(bw: Option<f64>) -> usize {
     }
 }
 
-fn bw_param_names(bw: Option<f64>) -> Vec<&'static str> {
+fn bw_param_names(bw: Option<Bw>) -> Vec<&'static str> {
     if bw.is_some() {
         BOUC_WEN_PARAMS.to_vec()
     } else {
@@ -396,7 +467,7 @@ fn bw_param_names(bw: Option<f64>) -> Vec<&'static str> {
     }
 }
 
-fn bw_start_grid(bw: Option<f64>) -> Vec<Vec<f64>> {
+fn bw_start_grid(bw: Option<Bw>) -> Vec<Vec<f64>> {
     if bw.is_some() {
         bouc_wen_grid()
     } else {
@@ -404,12 +475,9 @@ fn bw_start_grid(bw: Option<f64>) -> Vec<Vec<f64>> {
     }
 }
 
-fn bw_extra_path(bw: Option<f64>, th: &[f64], a: f64) -> Option<Box<dyn EffectSpec>> {
-    let range = bw?;
-    (a > 0.0).then(|| {
-        let (b, g) = bouc_wen_params(th, range);
-        Box::new(bouc_wen_term_spec(a, b, g, 0.0)) as Box<dyn EffectSpec>
-    })
+fn bw_extra_path(bw: Option<Bw>, th: &[f64], c: f64) -> Option<Box<dyn EffectSpec>> {
+    let bw = bw?;
+    (c > 0.0).then(|| Box::new(bw_spec(bw, th, c, 0.0)) as Box<dyn EffectSpec>)
 }
 
 /// A term keeps its parameter-free columns (the plays and ramps) over the whole record up to
@@ -422,28 +490,21 @@ const PLAYS_SIDE_BY_SIDE: usize = 8;
 /// The last Bouc-Wen column computed, with its parameters.
 type BwMemo = std::sync::Mutex<Option<(Vec<f64>, std::sync::Arc<Vec<f64>>)>>;
 
-/// The Bouc-Wen column at `th` (range `range`), from `memo` when it holds the column of `th`.
-fn bw_memoized(u: &[f64], range: f64, th: &[f64], memo: &BwMemo) -> std::sync::Arc<Vec<f64>> {
+/// The column of `bw` at `th`, from `memo` when it holds the column of `th`.
+fn bw_memoized(u: &[f64], bw: Bw, th: &[f64], memo: &BwMemo) -> std::sync::Arc<Vec<f64>> {
     let mut m = memo.lock().unwrap_or_else(|e| e.into_inner());
     if let Some((at, col)) = m.as_ref() {
         if at.len() == th.len() && at.iter().zip(th).all(|(a, b)| a.to_bits() == b.to_bits()) {
             return col.clone();
         }
     }
-    let (b, g) = bouc_wen_params(th, range);
-    let col = std::sync::Arc::new(bouc_wen_column(u, b, g));
+    let col = std::sync::Arc::new(bw_column(u, bw, th));
     *m = Some((th.to_vec(), col.clone()));
     col
 }
 
 impl<'a> PiTerm<'a> {
-    fn new(
-        u: &'a [f64],
-        thresholds: Vec<f64>,
-        sign: f64,
-        knots: Vec<f64>,
-        bw: Option<f64>,
-    ) -> Self {
+    fn new(u: &'a [f64], thresholds: Vec<f64>, sign: f64, knots: Vec<f64>, bw: Option<Bw>) -> Self {
         let mut t = PiTerm {
             u,
             thresholds,
@@ -466,8 +527,7 @@ impl<'a> PiTerm<'a> {
 
     /// The Bouc-Wen column at `th`, when the term has one.
     fn bw_at(&self, th: &[f64]) -> Option<std::sync::Arc<Vec<f64>>> {
-        self.bw
-            .map(|range| bw_memoized(self.u, range, th, &self.bw_memo))
+        self.bw.map(|bw| bw_memoized(self.u, bw, th, &self.bw_memo))
     }
 
     /// The plays (from states `z`, updated), the ramps and the Bouc-Wen column (from
@@ -643,8 +703,10 @@ impl TermFit for PiTerm<'_> {
         let base = self
             .bw_at(th)
             .expect("a term with parameters has its Bouc-Wen column");
-        let range = self.bw.unwrap_or(1.0);
-        bouc_wen_derivative(self.u, th, q, range, &base, coef[coef.len() - 1])
+        let bw = self
+            .bw
+            .expect("a term with parameters has its Bouc-Wen column");
+        bouc_wen_derivative(self.u, th, q, bw, &base, coef[coef.len() - 1])
     }
     fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec {
         let n = self.thresholds.len();
@@ -731,7 +793,7 @@ struct OutputMapTerm<'a> {
     knots: Vec<f64>,
     /// The path's sign, which every play weight keeps ([`OutputMapTerm::weights_of`]).
     sign: f64,
-    bw: Option<f64>,
+    bw: Option<Bw>,
     /// S'(z) per sample at the last (weights, slopes) asked: every weight's derivative uses it.
     slope: std::sync::Mutex<Option<SlopeAt>>,
     /// The samples the fit sees (a cross-validation's held-out block left out).
@@ -813,7 +875,10 @@ impl<'a> OutputMapTerm<'a> {
             bw_memo: BwMemo::default(),
             knots,
             sign: setup.sign,
-            bw: (setup.variant == 0 && setup.sign > 0.0).then_some(range),
+            bw: (setup.variant == 0).then_some(Bw {
+                range,
+                sign: setup.sign,
+            }),
             slope: std::sync::Mutex::new(None),
             held_out: prev
                 .left_out
@@ -1162,8 +1227,8 @@ impl TermFit for OutputMapTerm<'_> {
         let mut out = vec![Vec::new(); m];
         self.map_columns(&z, &mut out, &vec![true; m], &self.ties_at(&w, Some(&z)));
         let mut cols: Vec<Column<'s>> = out.into_iter().map(|c| (Cow::Owned(c), true)).collect();
-        if let Some(range) = self.bw {
-            let c = bw_memoized(self.u, range, &th[..2], &self.bw_memo);
+        if let Some(bw) = self.bw {
+            let c = bw_memoized(self.u, bw, &th[..2], &self.bw_memo);
             cols.push((Cow::Owned(c.to_vec()), true));
         }
         cols
@@ -1187,8 +1252,8 @@ impl TermFit for OutputMapTerm<'_> {
             let z = self.z_block(&w, rows.clone(), &mut state.carry, &mut state.scratch);
             self.map_columns(&z, &mut out[..m], &wanted[..m], &ties);
         }
-        if let (Some(range), Some(o), Some(true)) = (self.bw, out.get_mut(m), wanted.get(m)) {
-            let c = bw_memoized(self.u, range, &th[..2], &self.bw_memo);
+        if let (Some(bw), Some(o), Some(true)) = (self.bw, out.get_mut(m), wanted.get(m)) {
+            let c = bw_memoized(self.u, bw, &th[..2], &self.bw_memo);
             o.clear();
             o.extend_from_slice(&c[rows]);
         }
@@ -1200,10 +1265,9 @@ impl TermFit for OutputMapTerm<'_> {
     }
     fn derivative(&self, th: &[f64], q: usize, coef: &[f64]) -> Vec<f64> {
         let nbw = bw_n_params(self.bw);
-        if q < nbw {
-            let range = self.bw.unwrap_or(1.0);
-            let base = bw_memoized(self.u, range, &th[..2], &self.bw_memo);
-            return bouc_wen_derivative(self.u, th, q, range, &base, coef[coef.len() - 1]);
+        if let Some(bw) = self.bw.filter(|_| q < nbw) {
+            let base = bw_memoized(self.u, bw, &th[..2], &self.bw_memo);
+            return bouc_wen_derivative(self.u, th, q, bw, &base, coef[coef.len() - 1]);
         }
         if self.held(th, q) {
             return vec![0.0; self.u.len()];
@@ -1298,7 +1362,7 @@ impl TermFit for OutputMapTerm<'_> {
 /// Bouc-Wen (n = 1, Rakotondrabe 2011 form): y = d u - A htilde, A >= 0.
 struct BoucWenTerm<'a> {
     u: &'a [f64],
-    range: f64,
+    bw: Bw,
 }
 
 impl TermFit for BoucWenTerm<'_> {
@@ -1315,19 +1379,15 @@ impl TermFit for BoucWenTerm<'_> {
         bouc_wen_grid()
     }
     fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>> {
-        let (b, g) = bouc_wen_params(th, self.range);
-        vec![(Cow::Owned(bouc_wen_column(self.u, b, g)), true)]
+        vec![(Cow::Owned(bw_column(self.u, self.bw, th)), true)]
     }
     fn derivative(&self, th: &[f64], q: usize, coef: &[f64]) -> Vec<f64> {
-        let (b, g) = bouc_wen_params(th, self.range);
-        let base = bouc_wen_column(self.u, b, g);
-        bouc_wen_derivative(self.u, th, q, self.range, &base, coef[0])
+        let base = bw_column(self.u, self.bw, th);
+        bouc_wen_derivative(self.u, th, q, self.bw, &base, coef[0])
     }
     fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec {
-        let (b, g) = bouc_wen_params(th, self.range);
-        let a = coef[0];
-        let spec = if a > 0.0 {
-            bouc_wen_term_spec(a, b, g, gain)
+        let spec = if coef[0] > 0.0 {
+            bw_spec(self.bw, th, coef[0], gain)
         } else {
             HysteresisSpec::Linear(LinearSpec { gain })
         };
@@ -1442,7 +1502,10 @@ impl Effect for HysteresisEffect {
         Some(match setup.variant {
             2 => Box::new(BoucWenTerm {
                 u,
-                range: max_abs(&seen),
+                bw: Bw {
+                    range: max_abs(&seen),
+                    sign: setup.sign,
+                },
             }),
             v => {
                 // the input's distinct levels, sorted once for the plays and the knots
@@ -1451,8 +1514,10 @@ impl Effect for HysteresisEffect {
                     .as_ref()
                     .map_or(setup.plays, |l| plays_for_levels(l.len(), setup.plays, v));
                 let thresholds = pi_thresholds(&seen, count);
-                // a negative path cannot carry a Bouc-Wen term (A > 0 in the plant file)
-                let bw = (v == 0 && setup.sign > 0.0).then(|| max_abs(&seen));
+                let bw = (v == 0).then(|| Bw {
+                    range: max_abs(&seen),
+                    sign: setup.sign,
+                });
                 let knots = match (v, &values) {
                     (0, Some(l)) => input_map_knots_by_levels(&seen, l, input_map_ramps(count)),
                     (0, None) => input_map_knots(&seen, input_map_ramps(count)),
@@ -1591,6 +1656,51 @@ fn reversals_after(u: &[f64], mut anchor: f64, tol: f64) -> Vec<usize> {
 mod tests {
     use super::*;
 
+    /// The negated operator of each family (Bouc-Wen with n = 1 and 2; Prandtl-Ishlinskii
+    /// with an input map and asymmetric dead zones; a gain) gives -H[u], and checks.
+    #[test]
+    fn a_negated_operator_negates_the_output() {
+        let u: Vec<f64> = (0..900)
+            .map(|k| 6.0 * (k as f64 * 0.021).sin() + 2.5 * (k as f64 * 0.093).cos() - 0.7)
+            .collect();
+        let bw = |n| {
+            HysteresisSpec::BoucWen(BoucWenSpec {
+                d: 0.6,
+                a: 0.4,
+                b: 0.3,
+                gamma: -0.1,
+                n,
+                initial_h: 0.1,
+            })
+        };
+        let pi = HysteresisSpec::PrandtlIshlinskii(PrandtlIshlinskiiSpec {
+            linear_weight: 0.5,
+            thresholds: vec![1.0, 2.5, 4.0],
+            weights: vec![0.2, 0.1, 0.05],
+            initial_state: 0.0,
+            input_map: Some(DeadZoneSpec {
+                thresholds: vec![-3.0, 0.0, 3.0],
+                weights: vec![0.05, 0.0, -0.04],
+            }),
+            dead_zones: Some(DeadZoneSpec {
+                thresholds: vec![-2.0, 0.0, 1.5],
+                weights: vec![0.3, 1.0, -0.25],
+            }),
+        });
+        let lin = HysteresisSpec::Linear(LinearSpec { gain: 0.7 });
+        for spec in [bw(1.0), bw(2.0), pi, lin] {
+            let y = spec.check().unwrap().operator().apply(&u);
+            let neg = spec.negated().check().unwrap().operator().apply(&u);
+            let err = y
+                .iter()
+                .zip(&neg)
+                .map(|(a, b)| (a + b).abs())
+                .fold(0.0, f64::max);
+            assert!(err < 1e-12, "{spec:?}: max |y + y_neg| {err}");
+            assert_eq!(spec.negated().negated(), spec);
+        }
+    }
+
     /// An operator starts at rest (input 0): a staircase that starts away from 0 shows its
     /// path one reversal more than its samples do, a signal that starts at 0 the same.
     #[test]
@@ -1642,7 +1752,8 @@ mod tests {
         for sign in [1.0, -1.0] {
             let thresholds = pi_thresholds(&u, 11);
             let knots = input_map_knots(&u, 4);
-            let mut term = PiTerm::new(&u, thresholds, sign, knots, (sign > 0.0).then_some(3.0));
+            let bw = Some(Bw { range: 3.0, sign });
+            let mut term = PiTerm::new(&u, thresholds, sign, knots, bw);
             assert!(term.cached.is_some());
             term.cached = None;
             let th = [0.3, -0.2][..term.n_params()].to_vec();

@@ -147,7 +147,10 @@ pub fn member(seed: u64, index: usize) -> Member {
         (1..=axes).map(|i| format!("u{i}")).collect()
     };
     let amplitudes: Vec<f64> = (0..axes).map(|_| dice.log_uniform(5.0, 150.0)).collect();
-    let (outputs, words) = draw_outputs(&mut dice, &inputs, &amplitudes, ts);
+    // the paths' signs from a stream of their own (members drawn before signs were kept
+    // their plants but for the signs)
+    let mut signs = Dice::new(seed, 1 << 41 | index as u64);
+    let (outputs, words) = draw_outputs(&mut dice, &mut signs, &inputs, &amplitudes, ts);
     let top = outputs
         .iter()
         .filter_map(|o| {
@@ -216,9 +219,12 @@ fn drawn(name: EffectName, ctx: &DrawContext, dice: &mut Dice) -> Box<dyn Effect
 
 /// The outputs: per axis a direct hysteretic path, the cross paths of a 2-DoF plant (two-way
 /// in 3 of 5 plants, else one-way: u1 -> y2 only), creep in half of the outputs and a mode in
-/// 7 of 10. Also a few words that describe them.
+/// 7 of 10. A direct path has a negative gain (a reversed polarity) in 1 of 5, a cross path
+/// in 1 of 2 (a coupling that bends the other way), drawn from `signs`. Also a few words that
+/// describe them.
 fn draw_outputs(
     dice: &mut Dice,
+    signs: &mut Dice,
     inputs: &[String],
     amplitudes: &[f64],
     ts: f64,
@@ -248,6 +254,11 @@ fn draw_outputs(
                 ts,
                 input_amplitude: amplitudes[i],
                 role,
+                sign: if signs.chance(if i == o { 0.2 } else { 0.5 }) {
+                    -1.0
+                } else {
+                    1.0
+                },
             };
             let h = drawn(crate::effect::hysteresis::NAME, &ctx, dice);
             words.push(format!("{input} -> {name}: {}", describe(&*h)));
@@ -257,6 +268,7 @@ fn draw_outputs(
             ts,
             input_amplitude: amplitudes[o],
             role: PathRole::Direct,
+            sign: 1.0,
         };
         let mut effects = Vec::new();
         if dice.chance(0.5) {
