@@ -381,14 +381,17 @@ mod tests {
             assert_eq!(p.h_bound(), q.h_bound());
             let (yp, yq) = (p.operator().apply(&u), q.operator().apply(&u));
             assert!(yp.iter().zip(&yq).all(|(a, b)| *a == -*b), "n = {n}");
-            // and it is the negative-A equation itself, integrated finely
-            let y_ref = euler(&q, &u, 2000);
-            let err = yq
-                .iter()
-                .zip(&y_ref)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
-            assert!(h0 != 0.0 || err < 2e-3, "n = {n}: max error {err}");
+            // and, from rest, it is the negative-A equation itself integrated finely (`euler`
+            // starts at h = 0)
+            if h0 == 0.0 {
+                let y_ref = euler(&q, &u, 2000);
+                let err = yq
+                    .iter()
+                    .zip(&y_ref)
+                    .map(|(a, b)| (a - b).abs())
+                    .fold(0.0, f64::max);
+                assert!(err < 2e-3, "n = {n}: max error {err}");
+            }
         }
     }
 }

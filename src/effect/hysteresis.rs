@@ -395,7 +395,7 @@ struct PiTerm<'a> {
     /// The Bouc-Wen column at the last parameters it was computed for (the Jacobian's
     /// derivatives follow an evaluation at the same point).
     bw_memo: BwMemo,
-    /// The Bouc-Wen column's input range, when there is one.
+    /// The Bouc-Wen column (its input range and the path's sign), when there is one.
     bw: Option<Bw>,
 }
 
@@ -700,12 +700,10 @@ impl TermFit for PiTerm<'_> {
         self.nonnegative()
     }
     fn derivative(&self, th: &[f64], q: usize, coef: &[f64]) -> Vec<f64> {
-        let base = self
-            .bw_at(th)
-            .expect("a term with parameters has its Bouc-Wen column");
         let bw = self
             .bw
             .expect("a term with parameters has its Bouc-Wen column");
+        let base = bw_memoized(self.u, bw, th, &self.bw_memo);
         bouc_wen_derivative(self.u, th, q, bw, &base, coef[coef.len() - 1])
     }
     fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec {
@@ -1359,7 +1357,8 @@ impl TermFit for OutputMapTerm<'_> {
     }
 }
 
-/// Bouc-Wen (n = 1, Rakotondrabe 2011 form): y = d u - A htilde, A >= 0.
+/// Bouc-Wen (n = 1, Rakotondrabe 2011 form): y = d u - A htilde, A of the path's sign (the
+/// mirrored loop on a negative path: [`Bw`]).
 struct BoucWenTerm<'a> {
     u: &'a [f64],
     bw: Bw,

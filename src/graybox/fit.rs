@@ -257,16 +257,9 @@ const SIGN_LAGS: usize = 4;
 /// tilt a static fit of y on u (an input above a mode's frequency turns a static slope
 /// negative; on the 2-DoF short records of the development zoo of seed 30 the static fit's
 /// sign was wrong on 66 of 400 direct paths, the ARX's on 12). Rows whose lags reach into
-/// `held_out` are left out. Where the ARX is not stable (sum_i a_i >= 1) or a gain is 0,
-/// the sign of `fallback` (a static fit's gains).
-fn path_signs(
-    u: &[&[f64]],
-    y: &[f64],
-    held_out: Option<&Range<usize>>,
-    fallback: &[f64],
-) -> Vec<f64> {
-    let sign = |g: f64| if g < 0.0 { -1.0 } else { 1.0 };
-    let static_signs = || fallback.iter().map(|&g| sign(g)).collect();
+/// `held_out` are left out. `None` where the ARX does not give them: too few rows, a
+/// singular fit, not stable (sum_i a_i >= 1) or a gain of 0 ([`static_signs`] then).
+fn path_signs(u: &[&[f64]], y: &[f64], held_out: Option<&Range<usize>>) -> Option<Vec<f64>> {
     let (na, m) = (SIGN_LAGS, u.len());
     let p = na + SIGN_LAGS * m + 1;
     let mut ne = crate::numeric::lstsq::NormalEquations::new(p);
@@ -287,25 +280,36 @@ fn path_signs(
         ne.add_row(&row, y[k]);
     }
     if ne.rows() < 2 * p {
-        return static_signs();
+        return None;
     }
     let (g, b) = ne.into_parts();
-    let Some(th) = crate::numeric::lstsq::solve_scaled(&g, &b, 1e-10) else {
-        return static_signs();
-    };
+    let th = crate::numeric::lstsq::solve_scaled(&g, &b, 1e-10)?;
     let den = 1.0 - th.iter().take(na).sum::<f64>();
     if !(den > 0.0 && den.is_finite()) {
-        return static_signs();
+        return None;
     }
     (0..m)
         .map(|j| {
             let gain: f64 = th.iter().skip(na + SIGN_LAGS * j).take(SIGN_LAGS).sum();
-            if gain != 0.0 && gain.is_finite() {
-                sign(gain)
-            } else {
-                sign(fallback[j])
-            }
+            (gain != 0.0 && gain.is_finite()).then(|| gain.signum())
         })
+        .collect()
+}
+
+/// The sign of each path's gain in a static least-squares fit of y on the paths' inputs `u`
+/// and an intercept, `held_out` left out ([`path_signs`]' fallback): it copies every path's
+/// input over the record, so it runs only where the ARX gives no sign.
+fn static_signs(u: &[&[f64]], y: &[f64], held_out: Option<&Range<usize>>) -> Vec<f64> {
+    let mut owned: Vec<Vec<f64>> = u.iter().map(|c| c.to_vec()).collect();
+    owned.push(vec![1.0; y.len()]);
+    if let Some(r) = held_out {
+        owned.iter_mut().for_each(|c| c[r.clone()].fill(0.0));
+    }
+    let cols: Vec<&[f64]> = owned.iter().map(Vec::as_slice).collect();
+    least_squares(&cols, y)
+        .iter()
+        .take(u.len())
+        .map(|&g| if g < 0.0 { -1.0 } else { 1.0 })
         .collect()
 }
 
@@ -493,16 +497,10 @@ impl<'a> OutputProblem<'a> {
             .zip(at)
             .map(|(filter, params)| PlacedFilter { filter, params })
             .collect();
-        // a static fit of each path's gain, the fallback of its sign (PI weights share it)
-        let mut owned: Vec<Vec<f64>> = structure.paths.iter().map(|&j| u[j].to_vec()).collect();
-        owned.push(vec![1.0; y.len()]);
-        if let Some(r) = &held_out {
-            owned.iter_mut().for_each(|c| c[r.clone()].fill(0.0));
-        }
-        let cols: Vec<&[f64]> = owned.iter().map(Vec::as_slice).collect();
-        let lin = least_squares(&cols, &y);
+        // each path's sign (PI weights and the Bouc-Wen term share it)
         let path_u: Vec<&[f64]> = structure.paths.iter().map(|&j| u[j]).collect();
-        let signs = path_signs(&path_u, &y, held_out.as_ref(), &lin);
+        let signs = path_signs(&path_u, &y, held_out.as_ref())
+            .unwrap_or_else(|| static_signs(&path_u, &y, held_out.as_ref()));
         let mut paths = Vec::new();
         let mut n_cols = 0;
         for (k, &j) in structure.paths.iter().enumerate() {
@@ -1730,15 +1728,19 @@ mod tests {
         for (g1, g2) in [(1.0, 0.3), (-1.0, 0.3), (1.0, -0.3), (-0.8, -0.4)] {
             let (y1, y2) = (mode(&u1, g1), mode(&u2, g2));
             let y: Vec<f64> = y1.iter().zip(&y2).map(|(a, b)| a + b + 2.0).collect();
-            let lin = least_squares(&[&u1, &u2, &vec![1.0; n]], &y);
             let want = [g1.signum(), g2.signum()];
+            let fallback = static_signs(&[&u1, &u2], &y, None);
             assert!(
-                lin[0].signum() != want[0],
-                "the static fit's sign is wrong here: {lin:?}"
+                fallback[0] != want[0],
+                "the static fit's sign is wrong here: {fallback:?}"
             );
             for held in [None, Some(1000..1500)] {
-                let got = path_signs(&[&u1, &u2], &y, held.as_ref(), &lin);
-                assert_eq!(got, want, "gains {g1}, {g2}, held out {held:?}");
+                let got = path_signs(&[&u1, &u2], &y, held.as_ref());
+                assert_eq!(
+                    got,
+                    Some(want.to_vec()),
+                    "gains {g1}, {g2}, held out {held:?}"
+                );
             }
         }
     }
