@@ -1,7 +1,9 @@
 //! `hystbench diagnose`: which physical effect does the model miss?
 
 use crate::cli::compare::predict_record;
-use hystbench::diagnose::{diagnose_any, DiagnoseOptions, Diagnosis};
+use hystbench::diagnose::refit::model_rms;
+use hystbench::diagnose::{diagnose, with_refit, DiagnoseOptions, Diagnosis};
+use hystbench::graybox::FitMemo;
 use hystbench::model::LoadedModel;
 use std::path::PathBuf;
 
@@ -97,7 +99,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     // a grey-box model or a plant file: its structure can be refitted
     let config = loaded.structure();
-    let d = diagnose_any(&io, &pred, &model.effects(), config.as_ref(), &opts);
+    let refit = config.as_ref().zip(opts.refit);
+    // the effects of the structure the refits use, else the model's
+    let effects = refit.map_or_else(|| model.effects(), |(c, _)| c.effects());
+    let d = diagnose(&io, &pred, &effects, &opts);
     if let Some(f) = &a.figure {
         let label = a
             .data
@@ -110,6 +115,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let shapes = d.outputs.iter().map(|o| o.residual.clone()).collect();
         hystbench::plot::residual_where_figure(&rec, shapes, None, f, None, a.force)?;
     }
+    let d = match refit {
+        Some((c, r)) => {
+            let rms_model = model_rms(&io, &pred, &r);
+            // the refits are fits of the whole record: its prediction is not held through them
+            drop(pred);
+            with_refit(d, &io, &rms_model, c, &opts, &FitMemo::new())
+        }
+        _ => d,
+    };
     if a.json {
         crate::cli::print(&serde_json::to_string(&d)?);
     } else {

@@ -170,9 +170,10 @@ pub fn diagnose(
     }
 }
 
-/// What `hystbench diagnose` runs: [`diagnose_model`] where the model's structure can be
-/// refitted (`config`: a grey-box model's or a plant's) and the refit test is on, else
-/// [`diagnose`] on the basis banks alone.
+/// The diagnosis `hystbench diagnose` makes: [`diagnose_model`] where the model's structure can
+/// be refitted (`config`: a grey-box model's or a plant's) and the refit test is on, else
+/// [`diagnose`] on the basis banks alone. (The command itself runs the two halves,
+/// [`diagnose`] and [`with_refit`], to drop the prediction between them.)
 pub fn diagnose_any(
     rec: &IoRecord,
     predictions: &[Vec<f64>],
@@ -207,11 +208,36 @@ pub fn diagnose_model_with(
     opts: &DiagnoseOptions,
     memo: &FitMemo,
 ) -> Diagnosis {
-    let effects = config.effects();
-    let mut d = diagnose(rec, predictions, &effects, opts);
+    let d = diagnose(rec, predictions, &config.effects(), opts);
+    match &opts.refit {
+        Some(r) => with_refit(
+            d,
+            rec,
+            &refit::model_rms(rec, predictions, r),
+            config,
+            opts,
+            memo,
+        ),
+        None => d,
+    }
+}
+
+/// The refit test ([`refit`]) of `d`'s ranked candidates (`d`: [`diagnose`] of a prediction of
+/// the grey-box structure `config` on `rec`; `rms_model`: that prediction's held-out RMS error
+/// per output, [`refit::model_rms`]); it decides `missing` and `candidates`. The prediction is
+/// not needed any more: on a long record its caller can drop it before the refits.
+pub fn with_refit(
+    mut d: Diagnosis,
+    rec: &IoRecord,
+    rms_model: &[f64],
+    config: &crate::graybox::GreyBoxConfig,
+    opts: &DiagnoseOptions,
+    memo: &FitMemo,
+) -> Diagnosis {
     let Some(ropts) = opts.refit else {
         return d;
     };
+    let effects = config.effects();
     // every ranked effect, but those whose direct signature the banks do not see
     let tested: Vec<EffectName> = d
         .ranking
@@ -223,7 +249,7 @@ pub fn diagnose_model_with(
         })
         .map(|r| r.effect)
         .collect();
-    let Some(check) = refit_check(config, rec, predictions, &tested, &ropts, memo) else {
+    let Some(check) = refit_check(config, rec, rms_model, &tested, &ropts, memo) else {
         return d;
     };
     let named = check.named();

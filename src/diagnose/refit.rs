@@ -154,57 +154,77 @@ fn block_sse(y: &[f64], pred: &[f64], range: &std::ops::Range<usize>, blocks: us
         .collect()
 }
 
-/// A model's free run of every output, or why it could not be fitted.
-type Prediction = Result<Vec<Vec<f64>>, String>;
+/// Per output, a refitted model's held-out squared errors by block, or why it could not be
+/// fitted. Each free run is cut down to its blocks as soon as it is made: on a long record a
+/// run is 8 bytes a sample, and the refits run one after the other.
+type HeldOutErrors = Result<Vec<Vec<f64>>, String>;
+
+/// The samples the refits leave out of an `n`-sample record.
+pub fn held_out_rows(n: usize, opts: &RefitOptions) -> std::ops::Range<usize> {
+    let at = |f: f64| ((n as f64 * f).round() as usize).min(n);
+    at(opts.held_out.0)..at(opts.held_out.1)
+}
+
+/// The model at hand's held-out RMS error per output (`predictions`: its free run of `io`),
+/// the bar a named effect must clear as well ([`refit_check`]).
+pub fn model_rms(io: &IoRecord, predictions: &[Vec<f64>], opts: &RefitOptions) -> Vec<f64> {
+    let held_out = held_out_rows(io.len(), opts);
+    let m = held_out.len() as f64;
+    io.outputs
+        .iter()
+        .zip(predictions)
+        .map(|(y, p)| (block_sse(&y.values, p, &held_out, 1)[0] / m).sqrt())
+        .collect()
+}
 
 /// Refit `config` and `config` + each of `candidates` on the first part of `io`, and test
-/// each candidate's held-out improvement (`predictions`: the model at hand's free run of `io`,
-/// which a named effect must beat on the held-out part too). `None` when the model itself
-/// cannot be refitted on the first part, or the held-out part has fewer samples than blocks.
+/// each candidate's held-out improvement (`rms_model`: the model at hand's held-out RMS error
+/// per output, [`model_rms`], which a named effect must beat too). `None` when the model
+/// itself cannot be refitted on the first part, or the held-out part has fewer samples than
+/// blocks.
 pub fn refit_check(
     config: &GreyBoxConfig,
     io: &IoRecord,
-    predictions: &[Vec<f64>],
+    rms_model: &[f64],
     candidates: &[EffectName],
     opts: &RefitOptions,
     memo: &FitMemo,
 ) -> Option<RefitCheck> {
     let blocks = opts.blocks.clamp(2, 16);
-    let n = io.len();
-    let at = |f: f64| ((n as f64 * f).round() as usize).min(n);
-    let held_out = at(opts.held_out.0)..at(opts.held_out.1);
+    let held_out = held_out_rows(io.len(), opts);
     if held_out.len() < blocks * 4 || candidates.is_empty() {
         return None;
     }
     let mut base_cfg = config.clone();
     base_cfg.options.train_fraction = 1.0;
     base_cfg.options.held_out = Some(held_out.clone());
+    let errors = |pred: Vec<Vec<f64>>| -> Vec<Vec<f64>> {
+        io.outputs
+            .iter()
+            .zip(&pred)
+            .map(|(y, p)| block_sse(&y.values, p, &held_out, blocks))
+            .collect()
+    };
     let base = memo.fit(&base_cfg, io).ok()?;
-    let base_pred = predict_finite(&base, io).ok()?;
+    let without = errors(predict_finite(&base, io).ok()?);
     let tests = (candidates.len() * io.outputs.len()).max(1);
     let level = opts.false_alarm / tests as f64;
     let refit = |&e: &EffectName| {
         let c = base_cfg.with_effect(e);
-        let pred = memo
+        let held = memo
             .fit(&c, io)
             .map_err(|x| x.to_string())
-            .and_then(|m| predict_finite(&m, io).map_err(|x| x.to_string()));
-        (e, pred)
+            .and_then(|m| predict_finite(&m, io).map_err(|x| x.to_string()))
+            .map(errors);
+        (e, held)
     };
     // a long record's fit keeps the threads busy alone: one at a time holds one fit's memory
-    let fitted: Vec<(EffectName, Prediction)> = if gram::fills_the_threads(n) {
+    let fitted: Vec<(EffectName, HeldOutErrors)> = if gram::fills_the_threads(io.len()) {
         candidates.iter().map(refit).collect()
     } else {
         candidates.par_iter().map(refit).collect()
     };
     let m = held_out.len() as f64;
-    // the model at hand's held-out error, per output
-    let rms_model: Vec<f64> = io
-        .outputs
-        .iter()
-        .zip(predictions)
-        .map(|(y, p)| (block_sse(&y.values, p, &held_out, 1)[0] / m).sqrt())
-        .collect();
     let mut effects: Vec<EffectRefit> = fitted
         .into_iter()
         .map(|(effect, pred)| match pred {
@@ -215,15 +235,14 @@ pub fn refit_check(
                 significant: false,
                 not_fitted: Some(why),
             },
-            Ok(pred) => {
+            Ok(held) => {
                 let outputs: Vec<OutputRefit> = io
                     .outputs
                     .iter()
                     .enumerate()
                     .map(|(o, y)| {
-                        let without = block_sse(&y.values, &base_pred[o], &held_out, blocks);
-                        let with = block_sse(&y.values, &pred[o], &held_out, blocks);
-                        let d: Vec<f64> = without.iter().zip(&with).map(|(a, b)| a - b).collect();
+                        let (without, with) = (&without[o], &held[o]);
+                        let d: Vec<f64> = without.iter().zip(with).map(|(a, b)| a - b).collect();
                         let rms_without = (without.iter().sum::<f64>() / m).sqrt();
                         let rms_with = (with.iter().sum::<f64>() / m).sqrt();
                         let fall = rms_without / rms_with.max(f64::MIN_POSITIVE);
