@@ -9,10 +9,13 @@
 //! allocated without swapping, under the process's control-group limit when it runs in one).
 //! Reading a file checks its text and parsed columns first ([`check_file`]).
 //!
-//! The estimate is an upper bound on the bench's records (1.07x to 2.6x the peaks measured on
-//! 200,000 to 2,000,000 samples, 2026-11-27; `simulate`, which now writes streaming, 2.7x to
-//! 6.9x: its cost is kept for plants with more states than the bench's), not a prediction to the megabyte: a record
-//! refused by a few percent can be cut a little.
+//! The estimate is an upper bound on the bench's records, not a prediction to the megabyte: a
+//! record refused by a few percent can be cut a little. The grey-box fit's and the diagnosis's
+//! per-sample costs follow their peaks from 2,000,000 to 20,000,000 samples (161 and 164 bytes
+//! a sample more, 2026-11-29); the estimate is 1.1x to 1.9x the peaks measured at 200,000,
+//! 2,000,000 and 20,000,000 samples (it was up to 3.5x at 20,000,000, set from the shorter
+//! records alone). `simulate`, which writes streaming, 2.7x to 6.9x: its cost is kept for
+//! plants with more states than the bench's.
 //! `HYSTBENCH_MEMORY_AVAILABLE` (bytes) replaces the machine's figure: to check what a
 //! smaller machine would say, or to go ahead where the estimate is too cautious.
 
@@ -24,17 +27,17 @@ pub const AVAILABLE_VARIABLE: &str = "HYSTBENCH_MEMORY_AVAILABLE";
 
 /// Bytes a command holds per sample beyond the record itself, per input path of an output
 /// fitted at a time (grey-box basis columns grow with the paths), measured on the bench's
-/// 1-input record with margin (`benches/scale.sh`, 200,000 to 2,000,000 samples); a grey-box
+/// 1-input record with margin (`benches/scale.sh`, 200,000 to 20,000,000 samples); a grey-box
 /// fit holds more per sample on a short record, up to a cap ([`Work::held_cap`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Work {
-    /// `fit`, `improve`: the grey-box fit. A long record's basis is streamed in pieces
+    /// `fit`: the grey-box fit. A long record's basis is streamed in pieces
     /// (`graybox`: the pieces and the columns kept whole up to 128 MB are the fixed part);
     /// what grows with the samples is the record, the residual and the derivatives of the
     /// parameters that are not computed a block at a time.
     GreyBoxFit,
-    /// `diagnose`: a fit's memory plus the banks and the refit test's candidate fits (run
-    /// one at a time on long records).
+    /// `diagnose`, `improve`: a fit's memory plus the banks and the refit test's candidate
+    /// fits (run one at a time on long records).
     Diagnosis,
     /// `identify`: the network's regressors and the grey-box base (fitted on at most 20,000
     /// samples to choose, then on the fitting part).
@@ -50,8 +53,8 @@ impl Work {
     /// Working bytes per sample and input path (see [`Work`]).
     pub const fn bytes_per_sample(self) -> u64 {
         match self {
-            Work::GreyBoxFit => 400,
-            Work::Diagnosis => 600,
+            Work::GreyBoxFit => 250,
+            Work::Diagnosis => 300,
             Work::Identification => 400,
             Work::Prediction | Work::Simulation => 250,
         }
@@ -64,7 +67,7 @@ impl Work {
     pub const fn held_bytes_per_sample(self) -> u64 {
         match self {
             Work::GreyBoxFit => 2_000,
-            Work::Diagnosis => 1_800,
+            Work::Diagnosis => 2_000,
             _ => 0,
         }
     }
