@@ -227,7 +227,7 @@ pub fn refit_check(
     let m = held_out.len() as f64;
     let mut effects: Vec<EffectRefit> = fitted
         .into_iter()
-        .map(|(effect, pred)| match pred {
+        .map(|(effect, held)| match held {
             Err(why) => EffectRefit {
                 effect,
                 outputs: Vec::new(),
