@@ -11,9 +11,9 @@
 //!
 //! The estimate is an upper bound on the bench's records, not a prediction to the megabyte: a
 //! record refused by a few percent can be cut a little. The grey-box fit's and the diagnosis's
-//! per-sample costs follow their peaks from 2,000,000 to 20,000,000 samples (161 and 164 bytes
+//! per-sample costs follow their peaks from 2,000,000 to 20,000,000 samples (165 and 171 bytes
 //! a sample more, 2026-11-29); the estimate is 1.1x to 1.9x the peaks measured at 200,000,
-//! 2,000,000 and 20,000,000 samples (it was up to 3.5x at 20,000,000, set from the shorter
+//! 2,000,000 and 20,000,000 samples (it was 2.6x and 3.5x at 20,000,000, set from the shorter
 //! records alone). `simulate`, which writes streaming, 2.7x to 6.9x: its cost is kept for
 //! plants with more states than the bench's.
 //! `HYSTBENCH_MEMORY_AVAILABLE` (bytes) replaces the machine's figure: to check what a

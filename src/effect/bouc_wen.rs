@@ -273,6 +273,14 @@ mod tests {
         .unwrap()
     }
 
+    /// The largest absolute difference between `a` and `b`.
+    fn max_error(a: &[f64], b: &[f64]) -> f64 {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max)
+    }
+
     /// Fine explicit integration of dh/du for comparison.
     fn euler(p: &BoucWen, u: &[f64], sub: usize) -> Vec<f64> {
         let mut h: f64 = 0.0;
@@ -298,11 +306,7 @@ mod tests {
             .collect();
         let y = p.operator().apply(&u);
         let y_ref = euler(&p, &u, 2000);
-        let err = y
-            .iter()
-            .zip(&y_ref)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let err = max_error(&y, &y_ref);
         assert!(err < 2e-3, "max error {err}");
     }
 
@@ -322,11 +326,7 @@ mod tests {
         let u: Vec<f64> = (0..400).map(|k| 40.0 * (k as f64 * 0.03).sin()).collect();
         let y = p.operator().apply(&u);
         let y_ref = euler(&p, &u, 2000);
-        let err = y
-            .iter()
-            .zip(&y_ref)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let err = max_error(&y, &y_ref);
         assert!(err < 2e-3, "max error {err}");
     }
 
@@ -385,11 +385,7 @@ mod tests {
             // starts at h = 0)
             if h0 == 0.0 {
                 let y_ref = euler(&q, &u, 2000);
-                let err = yq
-                    .iter()
-                    .zip(&y_ref)
-                    .map(|(a, b)| (a - b).abs())
-                    .fold(0.0, f64::max);
+                let err = max_error(&yq, &y_ref);
                 assert!(err < 2e-3, "n = {n}: max error {err}");
             }
         }
