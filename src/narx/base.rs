@@ -3,11 +3,10 @@
 //! The default protocol's physical candidate. Grey-box models (`crate::graybox`: hysteresis
 //! alone, with dynamics, with creep and dynamics, from the effect library, with coupling on a
 //! record of several inputs; each with its ridge chosen per output) are fitted on the training
-//! record's fitting part and run free over the whole training record; per output the simplest
-//! that the best does not clearly beat on the validation part, and that lies within one
-//! standard error of it there or below it in half the batches
-//! ([`crate::metrics::simplest_within_one_standard_error`]), is kept, and its errors there
-//! (the samples the network's selection scores) meet the network's free-run errors, per output:
+//! record's fitting part and run free over the whole training record; per output the one whose
+//! errors on the validation part are lowest on a log scale
+//! ([`crate::metrics::lowest_geometric_mean_error`]) is kept, and its errors there (the
+//! samples the network's selection scores) meet the network's free-run errors, per output:
 //!
 //! - [`BaseUse::Network`]: the network alone, as before, when its errors are clearly lower
 //!   (a one-sided test of equal mean squared error over batch means,
@@ -22,8 +21,8 @@
 //! A record too short for a validation part (see `RobustSettings::for_record`) is
 //! cross-validated instead: each candidate (effect list x ridge on its hysteresis terms) is
 //! fitted [`SHORT_FOLDS`] times, each time without one contiguous block, and judged on every
-//! sample's out-of-block free run; per output the simplest candidate that the best one does not
-//! clearly beat is kept and refitted on the whole record. The short-record probe's network
+//! sample's out-of-block free run; per output the candidate whose errors are lowest on a log
+//! scale is kept and refitted on the whole record. The short-record probe's network
 //! (trained without the last block) meets it on that block, and replaces it only where the base
 //! does not describe the record ([`SHORT_BASE_DESCRIBES`]).
 //!
@@ -43,20 +42,18 @@ use super::model::{FittedNarx, Mode, OutputModel};
 use super::NarxError;
 use crate::data::IoRecord;
 use crate::graybox::{FittedGreyBox, GreyBoxConfig, CV_FOLDS, RIDGES};
-use crate::metrics::{
-    significantly_lower_error, simplest_not_clearly_worse, simplest_within_one_standard_error,
-};
+use crate::metrics::{lowest_geometric_mean_error, significantly_lower_error};
 use crate::plant::{Plant, PlantSpec};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// The effect lists a base is chosen from, simplest first: each one the record supports is
-/// fitted and, per output, the simplest whose held-out errors the best one's do not clearly
-/// beat is kept (`coupling` is added on a record of several inputs). A mode fitted to a
-/// quasi-static plant costs a sample of lag at every step of the input, and on a short record
-/// a mode or creep fitted to what is not there extrapolates badly; the static model does
-/// neither. Each chain comes with its Bouc-Wen operator alone first (three parameters a
+/// The effect lists a base is chosen from, simplest first (the first of equal errors is kept):
+/// each one the record supports is fitted and, per output, the one whose held-out errors are
+/// lowest on a log scale is kept (`coupling` is added on a record of several inputs). A mode
+/// fitted to a quasi-static plant costs a sample of lag at every step of the input, and on a
+/// short record a mode or creep fitted to what is not there extrapolates badly: the held-out
+/// errors show it. Each chain comes with its Bouc-Wen operator alone first (three parameters a
 /// path, saturating loops that extrapolate as the physics does) and then the default operator
 /// (Prandtl-Ishlinskii plays, an input map and a Bouc-Wen term: any loop shape, but plays and
 /// ramps fitted to a few hundred samples can extrapolate badly). When none fits (no input
@@ -583,26 +580,20 @@ fn trace_choice(
     );
 }
 
-/// The candidate judged best for output `o` ([`simplest_not_clearly_worse`] on the errors over
-/// `judged`, in units of `std`; on a validation part, the record's continuation, within one
-/// standard error too: [`simplest_within_one_standard_error`]) and every candidate's errors.
+/// The candidate judged best for output `o` ([`lowest_geometric_mean_error`] on the errors over
+/// `judged`, in units of `std`) and every candidate's errors.
 fn pick(
     cands: &[Candidate],
     o: usize,
     y: &[f64],
     judged: std::ops::Range<usize>,
     std: f64,
-    validation_part: bool,
 ) -> (usize, Vec<Option<Vec<f64>>>) {
     let errs: Vec<Option<Vec<f64>>> = cands
         .iter()
         .map(|c| errors(y, &c.sim[o], judged.clone(), std))
         .collect();
-    if validation_part {
-        (simplest_within_one_standard_error(&errs), errs)
-    } else {
-        (simplest_not_clearly_worse(&errs), errs)
-    }
+    (lowest_geometric_mean_error(&errs), errs)
 }
 
 /// A short record's base candidates, cross-validated before the networks are trained.
@@ -635,7 +626,7 @@ impl NarxConfig {
         let describes_every_output = !candidates.is_empty()
             && train.outputs.iter().enumerate().all(|(o, s)| {
                 let std = super::regressors::Standardiser::fit(&s.values).std;
-                let (p, errs) = pick(&candidates, o, &s.values, 0..n, std, false);
+                let (p, errs) = pick(&candidates, o, &s.values, 0..n, std);
                 mse(&errs[p]).is_some_and(|m| m < SHORT_BASE_DESCRIBES)
             });
         Some(ShortBase {
@@ -682,7 +673,7 @@ impl NarxConfig {
         if cands.is_empty() {
             return Ok(m);
         }
-        // per output, the simplest candidate that the best one does not clearly beat, judged
+        // per output, the candidate with the lowest held-out errors on a log scale, judged
         // on every out-of-block sample of a short record, else on the validation part
         let judged = if short { 0..n } else { n_fit..n };
         let (mut picks, judged_mse): (Vec<usize>, Vec<Option<f64>>) = m
@@ -692,7 +683,7 @@ impl NarxConfig {
             .map(|(o, om)| {
                 let y = &train.outputs[o].values;
                 let std = om.scaling.std;
-                let (pick, errs) = pick(&cands, o, y, judged.clone(), std, !short);
+                let (pick, errs) = pick(&cands, o, y, judged.clone(), std);
                 if std::env::var_os("HYSTBENCH_TRACE").is_some() {
                     let tail = |p: &[f64]| errors(y, p, n_fit..n, std);
                     trace_choice(&om.name, o, &cands, &errs, pick, tail, &networks[o]);
@@ -703,7 +694,7 @@ impl NarxConfig {
         if !short {
             let judge = |o: usize, stages: &[Candidate]| {
                 let (y, std) = (&train.outputs[o].values, m.outputs[o].scaling.std);
-                let (pick, errs) = pick(stages, o, y, judged.clone(), std, true);
+                let (pick, errs) = pick(stages, o, y, judged.clone(), std);
                 if std::env::var_os("HYSTBENCH_TRACE").is_some() {
                     for (c, e) in stages.iter().zip(&errs) {
                         eprintln!(
