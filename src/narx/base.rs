@@ -4,8 +4,9 @@
 //! alone, with dynamics, with creep and dynamics, from the effect library, with coupling on a
 //! record of several inputs; each with its ridge chosen per output) are fitted on the training
 //! record's fitting part and run free over the whole training record; per output the one whose
-//! errors on the validation part are lowest on a log scale
-//! ([`crate::metrics::lowest_geometric_mean_error`]) is kept, and its errors there (the
+//! errors on the validation part are lowest on a log scale, or a simpler one within half a
+//! standard error there, of those within twice the lowest mean squared error
+//! ([`crate::metrics::lowest_geometric_mean_error`]), is kept, and its errors there (the
 //! samples the network's selection scores) meet the network's free-run errors, per output:
 //!
 //! - [`BaseUse::Network`]: the network alone, as before, when its errors are clearly lower
@@ -21,8 +22,8 @@
 //! A record too short for a validation part (see `RobustSettings::for_record`) is
 //! cross-validated instead: each candidate (effect list x ridge on its hysteresis terms) is
 //! fitted [`SHORT_FOLDS`] times, each time without one contiguous block, and judged on every
-//! sample's out-of-block free run; per output the candidate whose errors are lowest on a log
-//! scale is kept and refitted on the whole record. The short-record probe's network
+//! sample's out-of-block free run; per output the candidate the same rule picks is kept and
+//! refitted on the whole record. The short-record probe's network
 //! (trained without the last block) meets it on that block, and replaces it only where the base
 //! does not describe the record ([`SHORT_BASE_DESCRIBES`]).
 //!
