@@ -51,7 +51,8 @@ use std::path::Path;
 
 /// The effect lists a base is chosen from, simplest first (the first of equal errors is kept):
 /// each one the record supports is fitted and, per output, the one whose held-out errors are
-/// lowest on a log scale is kept (`coupling` is added on a record of several inputs). A mode
+/// lowest on a log scale ([`lowest_geometric_mean_error`]) is kept (`coupling` is added on a
+/// record of several inputs). A mode
 /// fitted to a quasi-static plant costs a sample of lag at every step of the input, and on a
 /// short record a mode or creep fitted to what is not there extrapolates badly: the held-out
 /// errors show it. Each chain comes with its Bouc-Wen operator alone first (three parameters a
