@@ -113,6 +113,8 @@ fn dynamics_matches_reference_to_1e6_of_range() {
         natural_frequency_hz: f(&q["natural_frequency_hz"]),
         damping_ratio: f(&q["damping_ratio"]),
         dc_gain: f(&q["dc_gain"]),
+        second_mode: None,
+        first_order_hold: 0.0,
     }
     .check()
     .unwrap();

@@ -107,6 +107,8 @@ fn creep_plant() -> Plant {
             natural_frequency_hz: 120.0,
             damping_ratio: 0.05,
             dc_gain: 1.0,
+            second_mode: None,
+            first_order_hold: 0.0,
         });
     })
 }
@@ -426,4 +428,79 @@ fn the_second_stage_comes_with_the_first_stage_it_replaced() {
     let (second, first) = (rms(&model.plant), rms(&first));
     eprintln!("rms error: first stage {first:.3e}, second stage {second:.3e}");
     assert!(second < 0.75 * first, "{second} vs {first}");
+}
+
+/// The `modes` variant of dynamics recovers a 2-DoF plant whose cross paths show both axes'
+/// modes (PHYSICS.md section 4: D_12 = D_21 = (D_1 + D_2) / 2), which one mode per output
+/// cannot hold, and a 1-DoF plant with a second mode under a first-order (ramped) hold.
+#[test]
+fn the_modes_variant_recovers_cross_dynamics_a_second_mode_and_the_hold() {
+    let spec = |text: &str| {
+        let p = root().join("plants").join("modes.json");
+        PlantSpec::parse(&p, text).unwrap().check(&p).unwrap()
+    };
+    let cross = spec(
+        r#"{"name": "cross", "inputs": ["u1", "u2"], "outputs": [
+ {"name": "y1", "paths": [
+   {"input": "u1", "hysteresis": {"bouc_wen": {"d": 0.8, "A": 0.3, "B": 0.02, "Gamma": 0.01}},
+    "dynamics": {"natural_frequency_hz": 30.0, "damping_ratio": 0.05}},
+   {"input": "u2", "hysteresis": {"linear": {"gain": 0.2}},
+    "dynamics": {"natural_frequency_hz": 30.0, "damping_ratio": 0.05,
+                 "second_mode": {"natural_frequency_hz": 80.0, "damping_ratio": 0.04, "share": 0.5}}}]},
+ {"name": "y2", "paths": [
+   {"input": "u1", "hysteresis": {"linear": {"gain": 0.15}},
+    "dynamics": {"natural_frequency_hz": 80.0, "damping_ratio": 0.04,
+                 "second_mode": {"natural_frequency_hz": 30.0, "damping_ratio": 0.05, "share": 0.5}}},
+   {"input": "u2", "hysteresis": {"bouc_wen": {"d": 1.0, "A": 0.35, "B": 0.02, "Gamma": 0.01}},
+    "dynamics": {"natural_frequency_hz": 80.0, "damping_ratio": 0.04}}]}]}"#,
+    );
+    let rec = record(
+        &cross,
+        r#"{"name": "two", "sampling_period_s": 0.001, "samples": 2000, "noise_std": 0.0, "seed": 3,
+  "inputs": [{"multisine": {"amplitude": 40.0, "f_min_hz": 0.5, "f_max_hz": 20.0}},
+             {"multisine": {"amplitude": 40.0, "f_min_hz": 0.7, "f_max_hz": 25.0}}]}"#,
+    );
+    let one = fit(&rec, "bouc-wen,dynamics,coupling");
+    let two = fit(&rec, "bouc-wen,modes,coupling");
+    assert!(one.fit.r2.unwrap() < 0.999, "one mode: {:?}", one.fit.r2);
+    assert!(two.fit.r2.unwrap() > 0.99999, "two modes: {:?}", two.fit.r2);
+    // the cross path of y2 (from u1) runs half through y1's 30 Hz mode
+    let d = two.plant.spec.outputs[1].paths[0]
+        .get::<DynamicsSpec>()
+        .expect("a path's dynamics");
+    let m = d.second_mode.expect("a second mode");
+    let (f30, share) = if (m.natural_frequency_hz - 30.0).abs() < 1.0 {
+        (m.natural_frequency_hz, m.share)
+    } else {
+        (d.natural_frequency_hz, 1.0 - m.share)
+    };
+    assert!(
+        (f30 - 30.0).abs() < 0.3 && (share - 0.5).abs() < 0.02,
+        "{d:?}"
+    );
+
+    let ramped = spec(
+        r#"{"name": "ramped", "inputs": ["u"], "outputs": [{"name": "y",
+  "paths": [{"input": "u", "hysteresis": {"bouc_wen": {"d": 0.8, "A": 0.3, "B": 0.02, "Gamma": 0.01}}}],
+  "dynamics": {"natural_frequency_hz": 60.0, "damping_ratio": 0.08, "first_order_hold": 1.0,
+               "second_mode": {"natural_frequency_hz": 170.0, "damping_ratio": 0.03, "share": 0.2}}}]}"#,
+    );
+    let rec = record(
+        &ramped,
+        r#"{"name": "one", "sampling_period_s": 0.001, "samples": 4000, "noise_std": 0.0, "seed": 4,
+  "inputs": [{"multisine": {"amplitude": 40.0, "f_min_hz": 0.5, "f_max_hz": 40.0}}]}"#,
+    );
+    let one = fit(&rec, "bouc-wen,dynamics");
+    let two = fit(&rec, "bouc-wen,modes");
+    assert!(one.fit.r2.unwrap() < 0.999, "one mode: {:?}", one.fit.r2);
+    assert!(two.fit.r2.unwrap() > 0.99999, "two modes: {:?}", two.fit.r2);
+    let d = two.plant.spec.outputs[0].paths[0]
+        .get::<DynamicsSpec>()
+        .expect("the path's dynamics");
+    let m = d.second_mode.expect("a second mode");
+    assert!((d.first_order_hold - 1.0).abs() < 0.01, "{d:?}");
+    assert!(
+        (m.natural_frequency_hz - 170.0).abs() < 1.0 && (m.share - 0.2).abs() < 0.01,
+        "{d:?}"
+    );
 }

@@ -158,6 +158,8 @@ fn dynamics_step_response_matches_closed_form() {
         natural_frequency_hz: 800.0,
         damping_ratio: 0.03,
         dc_gain: 1.0,
+        second_mode: None,
+        first_order_hold: 0.0,
     }
     .check()
     .unwrap();

@@ -70,6 +70,8 @@ fn plants_built_in_code_are_checked_and_put_in_chain_order() {
         natural_frequency_hz: 20.0,
         damping_ratio: 0.5,
         dc_gain: 1.0,
+        second_mode: None,
+        first_order_hold: 0.0,
     };
     let creep = hystbench::effect::creep::CreepSpec::from_log_rate(2.0, vec![0.1, 1.0]);
     spec.outputs[0].effects = vec![Box::new(dynamics), Box::new(dynamics)];

@@ -329,6 +329,7 @@ mod tests {
             ts: 0.01,
             variant: 0,
             parsimonious: false,
+            paths: 1,
         };
         let whole = DriftTerm::new(&setup(1000, None));
         let blocks = [0..10, 400..410, 990..1000];

@@ -4,9 +4,22 @@
 //! zero-order hold on w: x(k+1) = Phi x(k) + Gamma w(k), y(k) = x_1(k) (one sample of transport
 //! delay). Phi and Gamma come from the matrix exponential of the augmented system.
 //!
+//! Two extensions, both off by default (a plant file without them is the mode above, bit for
+//! bit):
+//! - a **second mode** in parallel, D(s) = g [(1 - c) M_1(s) + c M_2(s)] (modal superposition:
+//!   a bender's second mode, or a 2-DoF cross path that shows both axes' modes, PHYSICS.md
+//!   section 4);
+//! - the **input between samples**: held (the zero-order hold above) or ramped linearly from
+//!   one sample to the next (the first-order, triangle hold: a continuous input sampled, which
+//!   a measured record is), or a blend h of the two: x(k+1) = Phi x(k) + (Gamma_1 + h (Phi
+//!   Gamma_2 - Gamma_2)) w(k), y(k) = x_1(k) + h (C Gamma_2) w(k), with Gamma_1, Gamma_2 from
+//!   the exponential of [[A, B, 0], [0, 0, 1/T], [0, 0, 0]] T (the output then follows the
+//!   input within the sample).
+//!
 //! ## References
 //! - G. F. Franklin, J. D. Powell, M. Workman, *Digital Control of Dynamic Systems*, 3rd ed.,
-//!   Addison-Wesley, 1998, ch. 4 (zero-order-hold equivalents).
+//!   Addison-Wesley, 1998, ch. 4 (zero-order-hold equivalents) and ch. 6 (the triangle-hold
+//!   equivalent).
 //! - C. Moler, C. Van Loan, "Nineteen dubious ways to compute the exponential of a matrix,
 //!   twenty-five years later", SIAM Review 45(1):3-49, 2003 (scaling and squaring).
 
@@ -14,11 +27,12 @@ use super::basis::{BasisBank, BasisContext, EvidenceContext, Signal};
 use super::draw::{Dice, DrawContext};
 use super::feature::{FeatureKind, FeatureSpec};
 use super::fitting::{
-    log_bounded, log_bounded_inv, FilterFit, FilterState, OutputSetup, Prepared, FD_STEP,
+    bounded, bounded_inv, log_bounded, log_bounded_inv, FilterFit, FilterState, OutputSetup,
+    Prepared, Variant, FD_STEP,
 };
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
 use super::{non_negative, positive, Effect, EffectError, EffectName, Operator, Slot};
-use nalgebra::{Matrix2, Matrix3, Vector2};
+use nalgebra::{Matrix2, Matrix3, Matrix4, Vector2};
 use serde::{Deserialize, Serialize};
 
 /// The effect's name.
@@ -32,6 +46,23 @@ fn one() -> f64 {
     1.0
 }
 
+/// A second mode in parallel with the first, as written in a plant file.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModeSpec {
+    /// Natural frequency in Hz.
+    pub natural_frequency_hz: f64,
+    /// Damping ratio >= 0.
+    pub damping_ratio: f64,
+    /// Its share c of the static gain: D(s) = g [(1 - c) M_1(s) + c M_2(s)] (either sign: a
+    /// mode's residue may be negative).
+    pub share: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
 /// Second-order dynamics as written in a plant file.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -43,6 +74,35 @@ pub struct DynamicsSpec {
     /// Static gain (default 1).
     #[serde(default = "one")]
     pub dc_gain: f64,
+    /// A second mode in parallel (none by default).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub second_mode: Option<ModeSpec>,
+    /// How the input runs between samples, 0 to 1: 0 held (zero-order hold: the output lags
+    /// the input by a sample; the default), 1 ramped linearly to the next sample (first-order
+    /// or triangle hold: a continuous input sampled), between them a blend of the two.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub first_order_hold: f64,
+}
+
+impl DynamicsSpec {
+    /// One mode of unit static gain under a zero-order hold.
+    pub fn mode(natural_frequency_hz: f64, damping_ratio: f64) -> DynamicsSpec {
+        DynamicsSpec {
+            natural_frequency_hz,
+            damping_ratio,
+            dc_gain: 1.0,
+            second_mode: None,
+            first_order_hold: 0.0,
+        }
+    }
+}
+
+/// A valid second mode.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Mode {
+    pub natural_frequency_hz: f64,
+    pub damping_ratio: f64,
+    pub share: f64,
 }
 
 /// Valid second-order dynamics.
@@ -51,6 +111,8 @@ pub struct Dynamics {
     pub natural_frequency_hz: f64,
     pub damping_ratio: f64,
     pub dc_gain: f64,
+    pub second_mode: Option<Mode>,
+    pub first_order_hold: f64,
 }
 
 impl DynamicsSpec {
@@ -59,10 +121,33 @@ impl DynamicsSpec {
         positive("natural_frequency_hz", self.natural_frequency_hz)?;
         non_negative("damping_ratio", self.damping_ratio)?;
         super::finite("dc_gain", self.dc_gain)?;
+        let second_mode = match &self.second_mode {
+            None => None,
+            Some(m) => {
+                positive("second_mode.natural_frequency_hz", m.natural_frequency_hz)?;
+                non_negative("second_mode.damping_ratio", m.damping_ratio)?;
+                super::finite("second_mode.share", m.share)?;
+                Some(Mode {
+                    natural_frequency_hz: m.natural_frequency_hz,
+                    damping_ratio: m.damping_ratio,
+                    share: m.share,
+                })
+            }
+        };
+        let h = self.first_order_hold;
+        if !(0.0..=1.0).contains(&h) {
+            return Err(EffectError::Invalid {
+                field: "first_order_hold".into(),
+                value: h,
+                rule: "must lie between 0 (the input held between samples) and 1 (ramped to the next sample)".into(),
+            });
+        }
         Ok(Dynamics {
             natural_frequency_hz: self.natural_frequency_hz,
             damping_ratio: self.damping_ratio,
             dc_gain: self.dc_gain,
+            second_mode,
+            first_order_hold: h,
         })
     }
 }
@@ -88,7 +173,127 @@ pub fn expm3(m: &Matrix3<f64>) -> Matrix3<f64> {
     sum
 }
 
+/// [`expm3`] for a 4 x 4 matrix (the triangle-hold equivalent's augmented system).
+fn expm4(m: &Matrix4<f64>) -> Matrix4<f64> {
+    let norm = m.abs().row_sum().max();
+    let s = if norm > 0.5 {
+        (norm / 0.5).log2().ceil() as i32
+    } else {
+        0
+    };
+    let a = m / 2f64.powi(s);
+    let mut term = Matrix4::identity();
+    let mut sum = Matrix4::identity();
+    for k in 1..=20 {
+        term = term * a / k as f64;
+        sum += term;
+    }
+    for _ in 0..s {
+        sum = sum * sum;
+    }
+    sum
+}
+
+/// One mode discretised: state matrix, input vector and feedthrough (0 under a zero-order
+/// hold), its static gain in the input vector.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Discrete {
+    pub phi: Matrix2<f64>,
+    pub gamma: Vector2<f64>,
+    pub d: f64,
+}
+
+/// A mode (f, zeta) of static gain `gain` at sampling period `ts` under a blend `hold` of
+/// the zero-order (0) and first-order (1) holds; `field` names the frequency in errors.
+fn discretise_mode(
+    f: f64,
+    z: f64,
+    gain: f64,
+    hold: f64,
+    ts: f64,
+    field: &str,
+) -> Result<Discrete, EffectError> {
+    let wn = 2.0 * std::f64::consts::PI * f;
+    if wn * ts >= std::f64::consts::PI {
+        return Err(EffectError::Invalid {
+            field: field.into(),
+            value: f,
+            rule: format!(
+                "is at or above the Nyquist frequency {} Hz of the sampling period {ts} s; sample faster",
+                0.5 / ts
+            ),
+        });
+    }
+    let mut m = Matrix3::zeros();
+    m[(0, 1)] = 1.0;
+    m[(1, 0)] = -wn * wn;
+    m[(1, 1)] = -2.0 * z * wn;
+    m[(1, 2)] = gain * wn * wn;
+    if let Some(v) = (m * ts).iter().find(|v| !v.is_finite()) {
+        return Err(EffectError::Invalid {
+            field: "damping_ratio".into(),
+            value: z,
+            rule: format!(
+                "with natural_frequency_hz {f} and gain {gain} makes the mode's state matrix overflow ({v}); a mode this damped is a first-order lag: give a smaller damping ratio"
+            ),
+        });
+    }
+    if hold == 0.0 {
+        let e = expm3(&(m * ts));
+        return Ok(Discrete {
+            phi: Matrix2::new(e[(0, 0)], e[(0, 1)], e[(1, 0)], e[(1, 1)]),
+            gamma: Vector2::new(e[(0, 2)], e[(1, 2)]),
+            d: 0.0,
+        });
+    }
+    // [[A, B, 0], [0, 0, 1/T], [0, 0, 0]] T: Phi, Gamma_1, Gamma_2 (Franklin et al., ch. 6)
+    let mut a = Matrix4::zeros();
+    a.fixed_view_mut::<3, 3>(0, 0).copy_from(&(m * ts));
+    a[(2, 3)] = 1.0;
+    let e = expm4(&a);
+    let phi = Matrix2::new(e[(0, 0)], e[(0, 1)], e[(1, 0)], e[(1, 1)]);
+    let g1 = Vector2::new(e[(0, 2)], e[(1, 2)]);
+    let g2 = Vector2::new(e[(0, 3)], e[(1, 3)]);
+    Ok(Discrete {
+        phi,
+        gamma: g1 + hold * (phi * g2 - g2),
+        d: hold * g2[0],
+    })
+}
+
 impl Dynamics {
+    /// The modes discretised for sampling period `ts`: the first (its share of the static
+    /// gain in its input vector) and the second, where there is one.
+    pub fn discrete_modes(&self, ts: f64) -> Result<(Discrete, Option<Discrete>), EffectError> {
+        let h = self.first_order_hold;
+        let c = self.second_mode.map_or(0.0, |m| m.share);
+        let first = discretise_mode(
+            self.natural_frequency_hz,
+            self.damping_ratio,
+            self.dc_gain * (1.0 - c),
+            h,
+            ts,
+            "natural_frequency_hz",
+        )?;
+        let second = match self.second_mode {
+            None => None,
+            Some(m) => Some(discretise_mode(
+                m.natural_frequency_hz,
+                m.damping_ratio,
+                self.dc_gain * m.share,
+                h,
+                ts,
+                "second_mode.natural_frequency_hz",
+            )?),
+        };
+        Ok((first, second))
+    }
+
+    /// Whether this is the plain mode (one mode, zero-order hold).
+    pub fn plain(&self) -> bool {
+        self.second_mode.is_none() && self.first_order_hold == 0.0
+    }
+
     /// The zero-order-hold equivalent (Phi, Gamma) for sampling period `ts`.
     pub fn discretise(&self, ts: f64) -> Result<(Matrix2<f64>, Vector2<f64>), EffectError> {
         let wn = 2.0 * std::f64::consts::PI * self.natural_frequency_hz;
@@ -129,11 +334,23 @@ impl Dynamics {
 
     /// The operator for sampling period `ts`, at rest.
     pub fn operator(&self, ts: f64) -> Result<DynamicsOp, EffectError> {
-        let (phi, gamma) = self.discretise(ts)?;
+        if self.plain() {
+            let (phi, gamma) = self.discretise(ts)?;
+            return Ok(DynamicsOp {
+                phi,
+                gamma,
+                x: Vector2::zeros(),
+                d: 0.0,
+                second: None,
+            });
+        }
+        let (first, second) = self.discrete_modes(ts)?;
         Ok(DynamicsOp {
-            phi,
-            gamma,
+            phi: first.phi,
+            gamma: first.gamma,
             x: Vector2::zeros(),
+            d: first.d,
+            second: second.map(|m| Box::new((m, Vector2::zeros()))),
         })
     }
 
@@ -155,23 +372,37 @@ impl Dynamics {
     }
 }
 
-/// A running second-order filter.
+/// A running second-order filter (and its second mode, where it has one).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DynamicsOp {
     phi: Matrix2<f64>,
     gamma: Vector2<f64>,
     x: Vector2<f64>,
+    /// Feedthrough (0 under a zero-order hold).
+    d: f64,
+    second: Option<Box<(Discrete, Vector2<f64>)>>,
 }
 
 impl Operator for DynamicsOp {
     fn reset(&mut self) {
         self.x = Vector2::zeros();
+        if let Some(s) = self.second.as_mut() {
+            s.1 = Vector2::zeros();
+        }
     }
 
     #[inline]
     fn step(&mut self, w: f64) -> f64 {
-        let y = self.x[0];
+        let mut y = self.x[0];
         self.x = self.phi * self.x + self.gamma * w;
+        if self.d != 0.0 {
+            y += self.d * w;
+        }
+        if let Some(s) = self.second.as_mut() {
+            let (m, x) = &mut **s;
+            y += x[0] + m.d * w;
+            *x = m.phi * *x + m.gamma * w;
+        }
         y
     }
 }
@@ -211,6 +442,8 @@ pub fn basis<'a>(ctx: &BasisContext<'a>) -> BasisBank<'a> {
             natural_frequency_hz: f,
             damping_ratio: 0.1,
             dc_gain: 1.0,
+            second_mode: None,
+            first_order_hold: 0.0,
         };
         if let Ok(op) = d.operator(ctx.ts) {
             let x = || Signal::of(move |k| y[k] - y0).through(Box::new(op.clone()));
@@ -251,6 +484,8 @@ impl Resonator {
             natural_frequency_hz: hz,
             damping_ratio: zeta,
             dc_gain: 1.0,
+            second_mode: None,
+            first_order_hold: 0.0,
         };
         Resonator {
             filter: d.operator(ts).ok().map(|op| Box::new(op) as BoxedOperator),
@@ -514,6 +749,8 @@ impl DynamicsFilter {
             natural_frequency_hz: log_bounded(th[0], flo, fhi),
             damping_ratio: log_bounded(th[1], zlo, zhi),
             dc_gain: 1.0,
+            second_mode: None,
+            first_order_hold: 0.0,
         }
     }
 
@@ -601,9 +838,238 @@ impl FilterFit for DynamicsFilter {
             natural_frequency_hz: d.natural_frequency_hz,
             damping_ratio: d.damping_ratio,
             dc_gain: 1.0,
+            second_mode: None,
+            first_order_hold: 0.0,
         })
     }
 }
+
+/// The two modes of a path discretised (the first at its share of the gain, the second at
+/// its own), on one signal in place from its state `[x1, x2, x3, x4]` (updated).
+fn two_modes(a: &Discrete, b: &Discrete, out: &mut [f64], s: &mut FilterState) {
+    if s.len() != 4 {
+        *s = vec![0.0; 4];
+    }
+    let (mut x, mut z) = (Vector2::new(s[0], s[1]), Vector2::new(s[2], s[3]));
+    for v in out.iter_mut() {
+        let w = *v;
+        *v = x[0] + a.d * w + z[0] + b.d * w;
+        x = a.phi * x + a.gamma * w;
+        z = b.phi * z + b.gamma * w;
+    }
+    s.copy_from_slice(&[x[0], x[1], z[0], z[1]]);
+}
+
+/// The shares a path's second mode is kept within (a 2-DoF cross path through both axes'
+/// modes in equal parts has 0.5; one through the other axis' mode alone, 1).
+pub const SHARE_BOUNDS: (f64, f64) = (-1.0, 2.0);
+
+/// The grey-box filter of the `modes` variant: on each path two modes in parallel, the
+/// second's share of the path's static gain the path's own (a 2-DoF cross path that shows
+/// both axes' modes, a bender's second mode), and how the input runs between samples (the
+/// blend of the zero- and first-order holds), shared by the paths. Parameters: f_1, zeta_1,
+/// the hold, f_2, zeta_2, then one share per path.
+struct ModesFilter {
+    ts: f64,
+    f_bounds: (f64, f64),
+    z_bounds: (f64, f64),
+    paths: usize,
+}
+
+/// Where the `modes` filter's parameters are.
+const MODES_SHARED: usize = 5;
+
+impl ModesFilter {
+    fn dynamics(&self, th: &[f64], path: usize) -> Dynamics {
+        let (flo, fhi) = self.f_bounds;
+        let (zlo, zhi) = self.z_bounds;
+        Dynamics {
+            natural_frequency_hz: log_bounded(th[0], flo, fhi),
+            damping_ratio: log_bounded(th[1], zlo, zhi),
+            dc_gain: 1.0,
+            second_mode: Some(Mode {
+                natural_frequency_hz: log_bounded(th[3], flo, fhi),
+                damping_ratio: log_bounded(th[4], zlo, zhi),
+                share: bounded(th[MODES_SHARED + path], SHARE_BOUNDS.0, SHARE_BOUNDS.1),
+            }),
+            first_order_hold: bounded(th[2], 0.0, 1.0),
+        }
+    }
+
+    /// The parameters of modes (f_1, zeta_1), (f_2, zeta_2), hold `h` and every path's share
+    /// `share` (a hold of exactly 0 or 1 is taken a hundredth inside, where Levenberg-Marquardt can still move it).
+    fn params_of(
+        &self,
+        (f1, z1): (f64, f64),
+        h: f64,
+        (f2, z2): (f64, f64),
+        share: f64,
+    ) -> Vec<f64> {
+        let (fb, zb) = (self.f_bounds, self.z_bounds);
+        let mut th = vec![
+            log_bounded_inv(f1, fb.0, fb.1),
+            log_bounded_inv(z1, zb.0, zb.1),
+            bounded_inv(h.clamp(0.01, 0.99), 0.0, 1.0),
+            log_bounded_inv(f2, fb.0, fb.1),
+            log_bounded_inv(z2, zb.0, zb.1),
+        ];
+        th.extend(std::iter::repeat_n(
+            bounded_inv(share, SHARE_BOUNDS.0, SHARE_BOUNDS.1),
+            self.paths,
+        ));
+        th
+    }
+
+    fn filtered(&self, th: &[f64], path: usize, x: &[f64]) -> Vec<f64> {
+        match self.prepare_path(th, path) {
+            Prepared::Apply(f) => {
+                let mut out = x.to_vec();
+                f(&mut [&mut out], &mut [Vec::new()]);
+                out
+            }
+            _ => vec![f64::NAN; x.len()],
+        }
+    }
+}
+
+impl FilterFit for ModesFilter {
+    fn n_params(&self) -> usize {
+        MODES_SHARED + self.paths
+    }
+    fn initial(&self) -> Vec<f64> {
+        let f = 0.1 / self.ts;
+        self.params_of((f, 0.1), 0.5, (2.0 * f, 0.1), 0.0)
+    }
+    fn off_when_static(&self) -> bool {
+        true
+    }
+    fn at_static_edge(&self, th: &[f64]) -> bool {
+        self.dynamics(th, 0).natural_frequency_hz * self.ts > 0.25
+    }
+    fn prepare(&self, th: &[f64]) -> Prepared {
+        self.prepare_path(th, 0)
+    }
+    fn per_path(&self) -> bool {
+        true
+    }
+    fn prepare_path(&self, th: &[f64], path: usize) -> Prepared {
+        let Ok((a, Some(b))) = self.dynamics(th, path).discrete_modes(self.ts) else {
+            return Prepared::Invalid;
+        };
+        Prepared::Apply(Box::new(
+            move |cols: &mut [&mut [f64]], states: &mut [FilterState]| {
+                debug_assert_eq!(cols.len(), states.len(), "a state per signal");
+                for (out, s) in cols.iter_mut().zip(states.iter_mut()) {
+                    two_modes(&a, &b, out, s);
+                }
+            },
+        ))
+    }
+    fn derivative(&self, th: &[f64], x: &[f64], q: usize) -> Vec<f64> {
+        self.derivative_path(th, x, q, 0)
+    }
+    fn derivative_path(&self, th: &[f64], x: &[f64], q: usize, path: usize) -> Vec<f64> {
+        if q >= MODES_SHARED && q != MODES_SHARED + path {
+            return vec![0.0; x.len()];
+        }
+        // central differences (as many filter runs as a forward one from `th`)
+        let (mut lo, mut hi) = (th.to_vec(), th.to_vec());
+        lo[q] -= FD_STEP;
+        hi[q] += FD_STEP;
+        let a = self.filtered(&lo, path, x);
+        let b = self.filtered(&hi, path, x);
+        b.iter()
+            .zip(&a)
+            .map(|(b, a)| (b - a) / (2.0 * FD_STEP))
+            .collect()
+    }
+    /// The one-mode grid of the plain filter (each path's second mode at no share) at the
+    /// hold that costs least of held, half and ramped; then, at the best of its modes, a grid
+    /// of second modes with every path's share at 0.3: the `count` best one-mode starts and
+    /// the best two-mode one.
+    fn starts(
+        &self,
+        _th: &[f64],
+        cost: &dyn Fn(&[f64]) -> f64,
+        count: usize,
+    ) -> Option<Vec<Vec<f64>>> {
+        let plain = DynamicsFilter {
+            ts: self.ts,
+            f_bounds: self.f_bounds,
+            z_bounds: self.z_bounds,
+        };
+        let one = |m: &[f64], h: f64| {
+            let (f, z) = (
+                plain.dynamics(m).natural_frequency_hz,
+                plain.dynamics(m).damping_ratio,
+            );
+            self.params_of((f, z), h, (2.0 * f, 0.1), 0.0)
+        };
+        let held = |m: &[f64]| cost(&one(m, 0.0));
+        let modes = plain.starts(&[], &held, count)?;
+        let best_hold = |m: &[f64]| {
+            [0.0, 0.5, 1.0]
+                .into_iter()
+                .map(|h| (cost(&one(m, h)), h))
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .map_or(0.0, |(_, h)| h)
+        };
+        let mut out: Vec<Vec<f64>> = modes.iter().map(|m| one(m, best_hold(m))).collect();
+        if let Some(m) = modes.first() {
+            let d = plain.dynamics(m);
+            let h = bounded(out[0][2], 0.0, 1.0);
+            let (flo, fhi) = (2.0 * self.f_bounds.0, 0.45 / self.ts);
+            let steps = ((fhi / flo).ln() / 1.25f64.ln()).ceil() as usize;
+            let second = (0..=steps)
+                .flat_map(|i| {
+                    let f = flo * (fhi / flo).powf(i as f64 / steps as f64);
+                    [0.05, 0.3].map(|z| (f, z))
+                })
+                .map(|m2| {
+                    let th = self.params_of((d.natural_frequency_hz, d.damping_ratio), h, m2, 0.3);
+                    (cost(&th), th)
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            out.extend(second.map(|(_, th)| th));
+        }
+        Some(out)
+    }
+    fn spec(&self, th: &[f64]) -> Box<dyn EffectSpec> {
+        self.path_spec(th, 0)
+    }
+    fn path_spec(&self, th: &[f64], path: usize) -> Box<dyn EffectSpec> {
+        let d = self.dynamics(th, path);
+        let m = d.second_mode.expect("two modes");
+        Box::new(DynamicsSpec {
+            natural_frequency_hz: d.natural_frequency_hz,
+            damping_ratio: d.damping_ratio,
+            dc_gain: 1.0,
+            second_mode: Some(ModeSpec {
+                natural_frequency_hz: m.natural_frequency_hz,
+                damping_ratio: m.damping_ratio,
+                share: m.share,
+            }),
+            first_order_hold: d.first_order_hold,
+        })
+    }
+}
+
+/// The grey-box variants: one mode on the output (the default), or two modes on each path
+/// with the second's share the path's own and the input's hold between samples fitted
+/// (`modes`: a 2-DoF cross path through both axes' modes, a bender's second mode, a
+/// continuous input sampled).
+pub const VARIANTS: [Variant; 2] = [
+    Variant {
+        name: "dynamics",
+        file: "one-mode",
+        warm_start: None,
+    },
+    Variant {
+        name: "modes",
+        file: "two-modes",
+        warm_start: None,
+    },
+];
 
 /// Linear dynamics as an effect of the library.
 pub struct DynamicsEffect;
@@ -617,6 +1083,8 @@ pub fn draw(ctx: &DrawContext, dice: &mut Dice) -> DynamicsSpec {
         natural_frequency_hz: dice.log_uniform(nyquist / 100.0, nyquist / 3.0),
         damping_ratio: dice.log_uniform(0.02, 0.7),
         dc_gain: 1.0,
+        second_mode: None,
+        first_order_hold: 0.0,
     }
 }
 
@@ -642,6 +1110,8 @@ impl Effect for DynamicsEffect {
             natural_frequency_hz: 60.0,
             damping_ratio: 0.04,
             dc_gain: 1.0,
+            second_mode: None,
+            first_order_hold: 0.0,
         }))
     }
     fn draw(&self, ctx: &DrawContext, dice: &mut Dice) -> Option<Box<dyn EffectSpec>> {
@@ -681,16 +1151,32 @@ impl Effect for DynamicsEffect {
         }
         out
     }
+    fn variants(&self) -> &'static [Variant] {
+        &VARIANTS
+    }
     fn filter(&self, setup: &OutputSetup) -> Option<Box<dyn FilterFit>> {
         let fs = 1.0 / setup.ts;
+        let f_bounds = (fs / setup.samples.clamp(1, 1000) as f64, 0.49 * fs);
+        let z_bounds = (2e-3, 5.0);
+        if setup.variant == 1 {
+            return Some(Box::new(ModesFilter {
+                ts: setup.ts,
+                f_bounds,
+                z_bounds,
+                paths: setup.paths.max(1),
+            }));
+        }
         Some(Box::new(DynamicsFilter {
             ts: setup.ts,
-            f_bounds: (fs / setup.samples.clamp(1, 1000) as f64, 0.49 * fs),
-            z_bounds: (2e-3, 5.0),
+            f_bounds,
+            z_bounds,
         }))
     }
-    fn parameter_count(&self, _variant: usize, _plays: usize) -> (usize, usize) {
-        (0, 2)
+    fn parameter_count(&self, variant: usize, _plays: usize) -> (usize, usize) {
+        match variant {
+            1 => (1, MODES_SHARED),
+            _ => (0, 2),
+        }
     }
 }
 
@@ -704,6 +1190,8 @@ mod tests {
             natural_frequency_hz: 40.0,
             damping_ratio: 0.05,
             dc_gain: 1.0,
+            second_mode: None,
+            first_order_hold: 0.0,
         }
         .check()
         .unwrap();
@@ -776,6 +1264,8 @@ mod tests {
                 natural_frequency_hz: 40.0,
                 damping_ratio: zeta,
                 dc_gain: 1.0,
+                second_mode: None,
+                first_order_hold: 0.0,
             }
             .check()
             .unwrap();
@@ -797,6 +1287,8 @@ mod tests {
             natural_frequency_hz: 800.0,
             damping_ratio: 0.03,
             dc_gain: 1.0,
+            second_mode: None,
+            first_order_hold: 0.0,
         }
         .check()
         .unwrap();
@@ -807,12 +1299,123 @@ mod tests {
             .contains("Nyquist"));
     }
 
+    /// The first-order (triangle) hold is the continuous mode driven by the input ramped
+    /// linearly between samples (fine RK4 integration); a blend is the two holds' outputs in
+    /// proportion; the hold's output follows a step within its sample.
+    #[test]
+    fn the_first_order_hold_is_the_mode_under_a_ramped_input() {
+        let (f, z, ts) = (50.0, 0.05, 1e-3);
+        let w: Vec<f64> = (0..300)
+            .map(|k| (k as f64 * 0.07).sin() + 0.3 * (k as f64 * 0.31).cos())
+            .collect();
+        let with = |h: f64| {
+            let mut d = DynamicsSpec::mode(f, z);
+            d.first_order_hold = h;
+            d.check().unwrap().operator(ts).unwrap().apply(&w)
+        };
+        let wn = 2.0 * std::f64::consts::PI * f;
+        // from rest a sample before the record, the input ramped from 0 to its first value
+        // (what the discrete hold assumes of the sample before the first)
+        let wr: Vec<f64> = std::iter::once(0.0).chain(w.iter().copied()).collect();
+        let (mut x, mut v) = (0.0f64, 0.0f64);
+        let sub = 200;
+        let dt = ts / sub as f64;
+        let mut exact = Vec::new();
+        for k in 0..wr.len() - 1 {
+            let rhs = |x: f64, v: f64, t: f64| {
+                let u = wr[k] + (wr[k + 1] - wr[k]) * t / ts;
+                (v, wn * wn * (u - x) - 2.0 * z * wn * v)
+            };
+            for i in 0..sub {
+                let t = i as f64 * dt;
+                let k1 = rhs(x, v, t);
+                let k2 = rhs(x + 0.5 * dt * k1.0, v + 0.5 * dt * k1.1, t + 0.5 * dt);
+                let k3 = rhs(x + 0.5 * dt * k2.0, v + 0.5 * dt * k2.1, t + 0.5 * dt);
+                let k4 = rhs(x + dt * k3.0, v + dt * k3.1, t + dt);
+                x += dt / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0);
+                v += dt / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1);
+            }
+            exact.push(x);
+        }
+        let ramp = with(1.0);
+        let err = ramp
+            .iter()
+            .zip(&exact)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(err < 1e-9, "first-order hold vs integration: {err}");
+        let (held, half) = (with(0.0), with(0.5));
+        for k in 0..w.len() {
+            assert!((half[k] - 0.5 * (held[k] + ramp[k])).abs() < 1e-12);
+        }
+        // a step: held, nothing at its sample; ramped, the response has begun
+        let step = |h: f64| {
+            let mut d = DynamicsSpec::mode(f, z);
+            d.first_order_hold = h;
+            d.check()
+                .unwrap()
+                .operator(ts)
+                .unwrap()
+                .apply(&[0.0, 1.0, 1.0])
+        };
+        assert_eq!(step(0.0)[1], 0.0);
+        assert!(step(1.0)[1] > 0.0);
+    }
+
+    /// Two modes in parallel are the sum of each alone at its share of the static gain; a
+    /// plant file without the new fields reads and writes as before.
+    #[test]
+    fn a_second_mode_adds_in_parallel_and_old_files_are_unchanged() {
+        let ts = 1e-3;
+        let w: Vec<f64> = (0..400).map(|k| (k as f64 * 0.05).sin()).collect();
+        let mut d = DynamicsSpec::mode(20.0, 0.1);
+        d.dc_gain = 2.0;
+        d.second_mode = Some(ModeSpec {
+            natural_frequency_hz: 90.0,
+            damping_ratio: 0.03,
+            share: 0.3,
+        });
+        let both = d.check().unwrap().operator(ts).unwrap().apply(&w);
+        let alone = |f: f64, z: f64, g: f64| {
+            let mut m = DynamicsSpec::mode(f, z);
+            m.dc_gain = g;
+            m.check().unwrap().operator(ts).unwrap().apply(&w)
+        };
+        let (a, b) = (alone(20.0, 0.1, 1.4), alone(90.0, 0.03, 0.6));
+        for k in 0..w.len() {
+            assert!((both[k] - a[k] - b[k]).abs() < 1e-12);
+        }
+        let text = r#"{"natural_frequency_hz":20.0,"damping_ratio":0.1,"dc_gain":1.0}"#;
+        let old: DynamicsSpec = serde_json::from_str(text).unwrap();
+        assert_eq!(old, DynamicsSpec::mode(20.0, 0.1));
+        assert_eq!(serde_json::to_string(&old).unwrap(), text);
+        let mut bad = DynamicsSpec::mode(20.0, 0.1);
+        bad.first_order_hold = 1.5;
+        assert!(bad
+            .check()
+            .unwrap_err()
+            .to_string()
+            .contains("first_order_hold"));
+        d.second_mode = Some(ModeSpec {
+            natural_frequency_hz: 600.0,
+            damping_ratio: 0.03,
+            share: 0.3,
+        });
+        let e = d.check().unwrap().operator(ts).unwrap_err().to_string();
+        assert!(
+            e.contains("second_mode.natural_frequency_hz") && e.contains("Nyquist"),
+            "{e}"
+        );
+    }
+
     #[test]
     fn negative_damping_rejected() {
         let s = DynamicsSpec {
             natural_frequency_hz: 10.0,
             damping_ratio: -0.1,
             dc_gain: 1.0,
+            second_mode: None,
+            first_order_hold: 0.0,
         };
         assert!(s.check().unwrap_err().to_string().contains("damping_ratio"));
     }

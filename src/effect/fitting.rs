@@ -39,6 +39,16 @@ pub fn log_bounded_inv(v: f64, lo: f64, hi: f64) -> f64 {
     logit((v.ln() - lo.ln()) / (hi.ln() - lo.ln()))
 }
 
+/// A value in [lo, hi] on a linear scale from an unbounded parameter.
+pub fn bounded(x: f64, lo: f64, hi: f64) -> f64 {
+    lo + (hi - lo) * sigmoid(x)
+}
+
+/// The unbounded parameter of a value in [lo, hi] ([`bounded`]'s inverse).
+pub fn bounded_inv(v: f64, lo: f64, hi: f64) -> f64 {
+    logit((v - lo) / (hi - lo))
+}
+
 /// A variant of an effect that the command line can pick instead of the effect's default
 /// (`bouc-wen` for hysteresis).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -149,6 +159,8 @@ pub struct OutputSetup<'a> {
     /// A short record gets the fewest terms it supports (creep: one or two time constants
     /// where it would need three).
     pub parsimonious: bool,
+    /// The output's paths (a filter with parameters per path: [`FilterFit::per_path`]).
+    pub paths: usize,
 }
 
 /// One column of a term: the signal and whether its coefficient must be >= 0.
@@ -320,6 +332,28 @@ pub trait FilterFit: Send + Sync {
     }
     /// The fitted filter as a plant-file spec.
     fn spec(&self, th: &[f64]) -> Box<dyn EffectSpec>;
+    /// Whether the filter acts on each path of the output alone (its parameters then include
+    /// some of each path's: a mode's share in each path, for a 2-DoF cross path that shows
+    /// both axes' modes). The fitter filters each path's columns with
+    /// [`FilterFit::prepare_path`], asks [`FilterFit::derivative_path`] of each path's sum and
+    /// writes [`FilterFit::path_spec`] on the paths instead of [`FilterFit::spec`] on the
+    /// output. At most one filter of an output is per path, the last of its chain.
+    fn per_path(&self) -> bool {
+        false
+    }
+    /// The filter of path `path` at parameters `th` (a per-path filter's).
+    fn prepare_path(&self, th: &[f64], _path: usize) -> Prepared {
+        self.prepare(th)
+    }
+    /// d/d th_q of path `path`'s filter output for its input `x` (a per-path filter's; zeros
+    /// for a parameter of another path).
+    fn derivative_path(&self, th: &[f64], x: &[f64], q: usize, _path: usize) -> Vec<f64> {
+        self.derivative(th, x, q)
+    }
+    /// The fitted filter of path `path` as a plant-file spec (a per-path filter's).
+    fn path_spec(&self, th: &[f64], _path: usize) -> Box<dyn EffectSpec> {
+        self.spec(th)
+    }
 }
 
 /// Why a record cannot support an effect of a grey-box model.

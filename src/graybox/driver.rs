@@ -2041,6 +2041,8 @@ mod tests {
             (1, "creep"),
             (2, "hysteresis,dynamics,coupling"),
             (2, "bouc-wen,creep,coupling,viscous"),
+            (1, "bouc-wen,creep,modes"),
+            (2, "hysteresis,modes,coupling"),
         ];
         for (m, effects) in cases {
             let rec = record(m, 20_000);
@@ -2066,10 +2068,12 @@ mod tests {
                 .zip(&yb)
                 .map(|(x, y)| (x - y) / (2.0 * h))
                 .collect();
-            let scale = crate::metrics::rms(&fd).max(1e-12);
+            // A parameter without influence at `th` (a second mode at zero share moves nothing)
+            // has a derivative at rounding level: an absolute floor keeps it from failing.
+            let scale = crate::metrics::rms(&fd);
             let err = crate::metrics::rmse(&fd, &col);
             assert!(
-                err <= 1e-3 * scale,
+                err <= 1e-3 * scale + 1e-10,
                 "{label}: parameter {q}: analytic vs central difference differ by {err:.3e} (rms {scale:.3e})"
             );
         }
@@ -2192,6 +2196,8 @@ mod tests {
             natural_frequency_hz: 40.0,
             damping_ratio: 0.1,
             dc_gain: 1.0,
+            second_mode: None,
+            first_order_hold: 0.0,
         }
         .check()
         .unwrap();

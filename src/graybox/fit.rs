@@ -228,6 +228,7 @@ impl OutputStructure {
                     ts,
                     variant: c.variant,
                     parsimonious: self.parsimonious,
+                    paths: self.paths.len(),
                 })
                 .is_some_and(|f| f.off_when_static())
         };
@@ -327,19 +328,19 @@ fn normal_equations(cols: &[&[f64]], y: &[f64]) -> (DMatrix<f64>, DVector<f64>) 
 }
 
 /// The prepared filters applied in order to a copy of `x` (NaN when one is invalid).
-fn apply_chain(prepared: &[Prepared], x: &[f64]) -> Vec<f64> {
+fn apply_chain(prepared: &[&Prepared], x: &[f64]) -> Vec<f64> {
     apply_chain_owned(prepared, x.to_vec())
 }
 
 /// The prepared filters applied in order to `x` (NaN when one is invalid).
-fn apply_chain_owned(prepared: &[Prepared], mut x: Vec<f64>) -> Vec<f64> {
+fn apply_chain_owned(prepared: &[&Prepared], mut x: Vec<f64>) -> Vec<f64> {
     apply_chain_many(prepared, std::slice::from_mut(&mut x));
     x
 }
 
 /// The prepared filters applied in order to each of the columns `xs` (NaN when one is
 /// invalid); a filter may run the columns side by side.
-fn apply_chain_many(prepared: &[Prepared], xs: &mut [Vec<f64>]) {
+fn apply_chain_many(prepared: &[&Prepared], xs: &mut [Vec<f64>]) {
     if prepared.iter().any(|p| matches!(p, Prepared::Invalid)) {
         xs.iter_mut().for_each(|x| x.fill(f64::NAN));
         return;
@@ -351,6 +352,67 @@ fn apply_chain_many(prepared: &[Prepared], xs: &mut [Vec<f64>]) {
             f(&mut cols, &mut fresh);
         }
     }
+}
+
+/// An output's filters prepared at some parameters: each filter's, one per path for a
+/// per-path filter ([`FilterFit::per_path`]).
+struct Chains {
+    filters: Vec<Vec<Prepared>>,
+}
+
+impl Chains {
+    /// No filter (the raw basis).
+    fn none() -> Chains {
+        Chains {
+            filters: Vec::new(),
+        }
+    }
+
+    /// Whether some filter differs from path to path.
+    fn per_path(&self) -> bool {
+        self.filters.iter().any(|f| f.len() > 1)
+    }
+
+    /// Whether some filter is invalid at these parameters.
+    fn invalid(&self) -> bool {
+        self.filters
+            .iter()
+            .flatten()
+            .any(|p| matches!(p, Prepared::Invalid))
+    }
+
+    /// The chain of path `p`, in order.
+    fn of_path(&self, p: usize) -> Vec<&Prepared> {
+        self.filters
+            .iter()
+            .map(|f| &f[p.min(f.len() - 1)])
+            .collect()
+    }
+}
+
+/// `s` cut into consecutive pieces of the lengths `lens` (which sum to its length at most).
+fn split_lengths<'a, T>(mut s: &'a mut [T], lens: &[usize]) -> Vec<&'a mut [T]> {
+    let mut out = Vec::with_capacity(lens.len());
+    for &l in lens {
+        let (a, b) = std::mem::take(&mut s).split_at_mut(l);
+        out.push(a);
+        s = b;
+    }
+    out
+}
+
+/// Groups of at most [`FILTER_GROUP`] consecutive items whose paths `path_of` gives: the
+/// items in order, a group never spanning two paths when `by_path` (else groups of
+/// [`FILTER_GROUP`] whatever the paths). Each group: its path (its first item's) and length.
+fn filter_groups(path_of: &[usize], by_path: bool) -> Vec<(usize, usize)> {
+    let mut out: Vec<(usize, usize)> = Vec::new();
+    for &p in path_of {
+        match out.last_mut() {
+            Some((q, len)) if *len < FILTER_GROUP && (!by_path || *q == p) => *len += 1,
+            _ => out.push((p, 1)),
+        }
+    }
+    out
 }
 
 /// `out += sign * sum_k coef_k cols_k` (`sign` +1 or -1), the columns added in order at
@@ -479,6 +541,7 @@ impl<'a> OutputProblem<'a> {
             ts,
             variant,
             parsimonious: structure.parsimonious,
+            paths: structure.paths.len(),
         };
         let built: Vec<Box<dyn FilterFit>> = structure
             .filters
@@ -723,22 +786,32 @@ impl<'a> OutputProblem<'a> {
                 &all
             }
         };
-        let prepared = match what {
+        let chains = match what {
             Columns::Filtered { with_dynamics } => self.prepared(th, with_dynamics),
-            Columns::Raw => Vec::new(),
+            Columns::Raw => Chains::none(),
         };
-        let invalid = prepared.iter().any(|p| matches!(p, Prepared::Invalid));
+        let invalid = chains.invalid();
         let mut is_wanted = vec![false; m];
         wanted.iter().for_each(|&k| is_wanted[k] = true);
         // the wanted columns that the filters act on (in column order), in groups side by
-        // side, each group with its filters' states (group, filter, column)
+        // side (one path's columns in a group where a filter differs from path to path),
+        // each group with its path's chain and its filters' states (group, filter, column)
         let filtered: Vec<bool> = (0..m)
             .map(|k| is_wanted[k] && k < self.layout.unfiltered)
             .collect();
-        let count = filtered.iter().filter(|f| **f).count();
-        let mut states: Vec<Vec<Vec<FilterState>>> = (0..count)
-            .step_by(FILTER_GROUP)
-            .map(|g| vec![vec![FilterState::new(); FILTER_GROUP.min(count - g)]; prepared.len()])
+        let col_paths = self.col_paths();
+        let target_paths: Vec<usize> = (0..m)
+            .filter(|&k| filtered[k])
+            .map(|k| col_paths[k])
+            .collect();
+        let groups = filter_groups(&target_paths, chains.per_path());
+        let group_lens: Vec<usize> = groups.iter().map(|g| g.1).collect();
+        let group_chains: Vec<Vec<&Prepared>> =
+            groups.iter().map(|g| chains.of_path(g.0)).collect();
+        let n_filters = chains.filters.len();
+        let mut states: Vec<Vec<Vec<FilterState>>> = groups
+            .iter()
+            .map(|&(_, len)| vec![vec![FilterState::new(); len]; n_filters])
             .collect();
         let terms: Vec<&PlacedTerm> = self.layout.terms().collect();
         let mut term_states: Vec<TermState> = terms.iter().map(|_| TermState::default()).collect();
@@ -786,14 +859,15 @@ impl<'a> OutputProblem<'a> {
                     .collect();
                 if invalid {
                     targets.iter_mut().for_each(|b| b.fill(f64::NAN));
-                } else if !prepared.is_empty() {
-                    targets
-                        .par_chunks_mut(FILTER_GROUP)
+                } else if n_filters > 0 {
+                    split_lengths(&mut targets, &group_lens)
+                        .into_par_iter()
                         .zip(states.par_iter_mut())
-                        .for_each(|(group, st)| {
+                        .zip(&group_chains)
+                        .for_each(|((group, st), chain)| {
                             let mut slices: Vec<&mut [f64]> =
                                 group.iter_mut().map(|b| b.as_mut_slice()).collect();
-                            for (p, s) in prepared.iter().zip(st.iter_mut()) {
+                            for (p, s) in chain.iter().zip(st.iter_mut()) {
                                 if let Prepared::Apply(f) = p {
                                     f(&mut slices, s);
                                 }
@@ -947,14 +1021,43 @@ impl<'a> OutputProblem<'a> {
         self.hold_out_rows(c, 0..c.len());
     }
 
-    /// The filters prepared at `th` (without those left out of the static model).
-    fn prepared(&self, th: &[f64], with_dynamics: bool) -> Vec<Prepared> {
-        self.layout
-            .filters
-            .iter()
-            .filter(|f| with_dynamics || !f.filter.off_when_static())
-            .map(|f| f.filter.prepare(&th[f.params.clone()]))
-            .collect()
+    /// The filters prepared at `th` (without those left out of the static model), a per-path
+    /// filter's for each path.
+    fn prepared(&self, th: &[f64], with_dynamics: bool) -> Chains {
+        let paths = self.layout.paths.len();
+        Chains {
+            filters: self
+                .layout
+                .filters
+                .iter()
+                .filter(|f| with_dynamics || !f.filter.off_when_static())
+                .map(|f| {
+                    let t = &th[f.params.clone()];
+                    if f.filter.per_path() {
+                        (0..paths).map(|p| f.filter.prepare_path(t, p)).collect()
+                    } else {
+                        vec![f.filter.prepare(t)]
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    /// The path of each column the filters act on (the columns before `unfiltered`).
+    fn col_paths(&self) -> Vec<usize> {
+        let mut at = vec![0; self.layout.unfiltered];
+        for (k, p) in self.layout.paths.iter().enumerate() {
+            at[p.gain_col] = k;
+            for t in &p.terms {
+                at[t.cols.clone()].fill(k);
+            }
+        }
+        at
+    }
+
+    /// Whether a filter differs from path to path ([`FilterFit::per_path`]).
+    fn per_path_filters(&self) -> bool {
+        self.layout.filters.iter().any(|f| f.filter.per_path())
     }
 
     /// The raw basis columns (before the filters) and which must have c >= 0; the constant
@@ -1030,7 +1133,7 @@ impl<'a> OutputProblem<'a> {
                 let cols: Vec<&[f64]> = used.iter().map(|&i| psi[i].as_slice()).collect();
                 subtract(0..self.y.len(), &cols);
             }
-            None if with_dynamics && self.filters_have_params() => {
+            None if with_dynamics && self.filters_have_params() && !self.per_path_filters() => {
                 // the unfiltered sum of the paths on the way (the Jacobian's filters need it)
                 // the columns of the paths (before the output terms): a prefix of `used`
                 let paths = used.partition_point(|&i| i < self.layout.unfiltered);
@@ -1137,10 +1240,24 @@ impl<'a> OutputProblem<'a> {
                     })
                     .unzip()
             });
-        // the blocked derivatives on a piece: the terms', through the filters (each from its
-        // state), held-out rows zero, non-finite values zero (and the parameter marked)
-        let prepared = self.prepared(th, true);
-        let invalid = prepared.iter().any(|p| matches!(p, Prepared::Invalid));
+        // the blocked derivatives on a piece: the terms', through their path's filters (each
+        // from its state), held-out rows zero, non-finite values zero (and the parameter
+        // marked)
+        let chains = self.prepared(th, true);
+        let invalid = chains.invalid();
+        let n_filters = chains.filters.len();
+        let term_paths: Vec<usize> = self
+            .layout
+            .paths
+            .iter()
+            .enumerate()
+            .flat_map(|(k, p)| p.terms.iter().map(move |_| k))
+            .collect();
+        let blocked_paths: Vec<usize> = blocked.iter().map(|b| term_paths[b.1]).collect();
+        let groups = filter_groups(&blocked_paths, chains.per_path());
+        let group_lens: Vec<usize> = groups.iter().map(|g| g.1).collect();
+        let group_chains: Vec<Vec<&Prepared>> =
+            groups.iter().map(|g| chains.of_path(g.0)).collect();
         let piece = |pass: &mut BlockedPass, rows: Range<usize>| -> Vec<Vec<f64>> {
             let mut out = vec![Vec::new(); blocked.len()];
             for (ti, t) in terms.iter().enumerate() {
@@ -1159,16 +1276,18 @@ impl<'a> OutputProblem<'a> {
                 }
             }
             // through the filters in groups side by side (each column from its own states)
-            out.par_chunks_mut(FILTER_GROUP)
-                .zip(pass.filters.par_chunks_mut(FILTER_GROUP))
-                .for_each(|(group, states)| {
+            split_lengths(&mut out, &group_lens)
+                .into_par_iter()
+                .zip(split_lengths(&mut pass.filters, &group_lens))
+                .zip(&group_chains)
+                .for_each(|((group, states), chain)| {
                     if invalid {
                         group.iter_mut().for_each(|c| c.fill(f64::NAN));
                         return;
                     }
                     let mut slices: Vec<&mut [f64]> =
                         group.iter_mut().map(|c| c.as_mut_slice()).collect();
-                    for (i, p) in prepared.iter().enumerate() {
+                    for (i, p) in chain.iter().enumerate() {
                         if let Prepared::Apply(f) = p {
                             let mut st: Vec<FilterState> = states
                                 .iter_mut()
@@ -1194,7 +1313,7 @@ impl<'a> OutputProblem<'a> {
         };
         let new_pass = || BlockedPass {
             terms: terms.iter().map(|_| TermState::default()).collect(),
-            filters: vec![vec![FilterState::new(); prepared.len()]; blocked.len()],
+            filters: vec![vec![FilterState::new(); n_filters]; blocked.len()],
             finite: vec![true; blocked.len()],
         };
         // D on a block: the whole columns' rows, the blocked ones' from the piece
@@ -1333,12 +1452,13 @@ impl<'a> OutputProblem<'a> {
     #[cfg(test)]
     pub(crate) fn output_at(&self, th: &[f64], coef: &[f64]) -> Vec<f64> {
         let (phi, _) = self.basis(th);
-        let prepared = self.prepared(th, true);
+        let chains = self.prepared(th, true);
+        let col_paths = self.col_paths();
         let f = self.layout.unfiltered;
         let mut out = vec![0.0; self.y.len()];
         for (k, (col, &c)) in phi.iter().zip(coef).enumerate() {
             let v = if k < f {
-                apply_chain(&prepared, col)
+                apply_chain(&chains.of_path(col_paths[k]), col)
             } else {
                 col.to_vec()
             };
@@ -1368,43 +1488,78 @@ impl<'a> OutputProblem<'a> {
         run: impl FnOnce(Vec<(usize, JacobianJob<'_>)>) -> R,
     ) -> R {
         let n = self.y.len();
-        let prepared = self.prepared(th, true);
+        let chains = self.prepared(th, true);
+        // each path's chain (one for all where no filter differs from path to path)
+        let per_path = chains.per_path();
+        let n_chains = if per_path { self.layout.paths.len() } else { 1 };
+        let chain_of: Vec<Vec<&Prepared>> = (0..n_chains).map(|p| chains.of_path(p)).collect();
         // the unfiltered sum of the paths (`w` when given), the columns added in order (a
-        // pass over the basis before the filters); only the filters' derivatives need it
-        let w: Cow<'_, [f64]> = match w {
-            Some(w) => Cow::Borrowed(w),
-            None if !self.filters_have_params() => Cow::Owned(Vec::new()),
-            None => {
+        // pass over the basis before the filters), each path's alone where a filter differs
+        // from path to path; only the filters' derivatives need it
+        let ws: Vec<Cow<'_, [f64]>> = match w {
+            Some(w) if !per_path => vec![Cow::Borrowed(w)],
+            _ if !self.filters_have_params() => vec![Cow::Owned(Vec::new()); n_chains],
+            _ => {
                 let last = self.layout.unfiltered;
+                let col_paths = self.col_paths();
                 let used: Vec<usize> = (0..last).filter(|&i| coef[i] != 0.0).collect();
-                let mut w = vec![0.0; n];
-                let c_used: Vec<f64> = used.iter().map(|&i| coef[i]).collect();
+                let of: Vec<usize> = used
+                    .iter()
+                    .map(|&i| if per_path { col_paths[i] } else { 0 })
+                    .collect();
+                let mut sums = vec![vec![0.0; n]; n_chains];
                 self.stream(th, Columns::Raw, Some(&used), false, |rows, cols| {
-                    add_columns(&mut w[rows], cols, &c_used, 1.0);
+                    for (p, sum) in sums.iter_mut().enumerate() {
+                        let (cs, cf): (Vec<&[f64]>, Vec<f64>) = used
+                            .iter()
+                            .zip(cols)
+                            .zip(&of)
+                            .filter(|(_, &q)| q == p)
+                            .map(|((&i, c), _)| (*c, coef[i]))
+                            .unzip();
+                        add_columns(&mut sum[rows.clone()], &cs, &cf, 1.0);
+                    }
                 });
-                Cow::Owned(w)
+                sums.into_iter().map(Cow::Owned).collect()
             }
         };
         let mut jobs: Vec<(usize, JacobianJob<'_>)> = Vec::new();
-        let prepared = &prepared;
+        let chain_of = &chain_of;
         for (i, f) in self.layout.filters.iter().enumerate() {
             if f.params.is_empty() {
                 continue;
             }
-            // the filter's input: the filters before it applied to the sum of the paths
-            let x = std::sync::Arc::new(apply_chain(&prepared[..i], &w));
+            // the filter's input on each chain: the filters before it applied to the sum
+            let xs: std::sync::Arc<Vec<Vec<f64>>> = std::sync::Arc::new(
+                chain_of
+                    .iter()
+                    .zip(&ws)
+                    .map(|(c, w)| apply_chain(&c[..i], w))
+                    .collect(),
+            );
             for q in 0..f.params.len() {
-                let x = x.clone();
+                let xs = xs.clone();
                 jobs.push((
                     f.params.start + q,
                     Box::new(move || {
-                        let d = f.filter.derivative(&th[f.params.clone()], &x, q);
-                        apply_chain_owned(&prepared[i + 1..], d)
+                        let th_f = &th[f.params.clone()];
+                        if !per_path {
+                            let d = f.filter.derivative(th_f, &xs[0], q);
+                            return apply_chain_owned(&chain_of[0][i + 1..], d);
+                        }
+                        let mut sum = vec![0.0; n];
+                        for (p, x) in xs.iter().enumerate() {
+                            let d = f.filter.derivative_path(th_f, x, q, p);
+                            let d = apply_chain_owned(&chain_of[p][i + 1..], d);
+                            sum.iter_mut().zip(&d).for_each(|(s, v)| *s += v);
+                        }
+                        sum
                     }),
                 ));
             }
         }
-        for path in &self.layout.paths {
+        for (k, path) in self.layout.paths.iter().enumerate() {
+            let chain = &chain_of[if per_path { k } else { 0 }];
             for t in &path.terms {
                 for q in 0..t.params.len() {
                     let coef = &coef[t.cols.clone()];
@@ -1412,7 +1567,7 @@ impl<'a> OutputProblem<'a> {
                         t.params.start + q,
                         Box::new(move || {
                             let d = t.term.derivative(&th[t.params.clone()], q, coef);
-                            apply_chain_owned(prepared, d)
+                            apply_chain_owned(chain, d)
                         }),
                     ));
                 }
@@ -1566,22 +1721,35 @@ impl<'a> OutputProblem<'a> {
     /// The fitted output as a plant output spec.
     pub fn output_spec(&self, th: &[f64], coef: &[f64]) -> OutputSpec {
         let mut paths = Vec::new();
-        for p in &self.layout.paths {
+        for (k, p) in self.layout.paths.iter().enumerate() {
             let input = self.input_names[p.input].clone();
             let gain = coef[p.gain_col];
+            // a per-path filter on every plant path this path writes (a term's extra paths,
+            // on the same input, share its filter)
+            let filters = || -> Vec<Box<dyn EffectSpec>> {
+                self.layout
+                    .filters
+                    .iter()
+                    .filter(|f| f.filter.per_path())
+                    .map(|f| f.filter.path_spec(&th[f.params.clone()], k))
+                    .collect()
+            };
             let mut specs: Vec<Box<dyn EffectSpec>> = Vec::new();
             for t in &p.terms {
                 let out = t
                     .term
                     .spec(&th[t.params.clone()], gain, &coef[t.cols.clone()]);
                 for extra in out.extra_paths {
-                    paths.push(PathSpec::new(input.clone(), vec![extra]));
+                    let mut e = vec![extra];
+                    e.extend(filters());
+                    paths.push(PathSpec::new(input.clone(), e));
                 }
                 specs.extend(out.spec);
             }
             for e in &self.required {
                 specs.extend(e.path_without(gain));
             }
+            specs.extend(filters());
             paths.push(PathSpec::new(input, specs));
         }
         OutputSpec {
@@ -1592,6 +1760,7 @@ impl<'a> OutputProblem<'a> {
                 .layout
                 .filters
                 .iter()
+                .filter(|f| !f.filter.per_path())
                 .map(|f| f.filter.spec(&th[f.params.clone()]))
                 .chain(self.layout.output_terms.iter().filter_map(|t| {
                     t.term
