@@ -32,7 +32,7 @@ use super::fitting::{
 };
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
 use super::{non_negative, positive, Effect, EffectError, EffectName, Operator, Slot};
-use nalgebra::{Matrix2, Matrix3, Matrix4, Vector2};
+use nalgebra::{Matrix2, Matrix3, Matrix4, SMatrix, Vector2};
 use serde::{Deserialize, Serialize};
 
 /// The effect's name.
@@ -152,8 +152,9 @@ impl DynamicsSpec {
     }
 }
 
-/// exp(M) by scaling and squaring with a Taylor series (accurate to rounding for small M).
-pub fn expm3(m: &Matrix3<f64>) -> Matrix3<f64> {
+/// exp(M) by scaling and squaring with a Taylor series (accurate to rounding for small M), for
+/// the augmented systems of the zero-order (3 x 3) and triangle-hold (4 x 4) equivalents.
+pub fn expm<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
     let norm = m.abs().row_sum().max();
     let s = if norm > 0.5 {
         (norm / 0.5).log2().ceil() as i32
@@ -161,29 +162,8 @@ pub fn expm3(m: &Matrix3<f64>) -> Matrix3<f64> {
         0
     };
     let a = m / 2f64.powi(s);
-    let mut term = Matrix3::identity();
-    let mut sum = Matrix3::identity();
-    for k in 1..=20 {
-        term = term * a / k as f64;
-        sum += term;
-    }
-    for _ in 0..s {
-        sum = sum * sum;
-    }
-    sum
-}
-
-/// [`expm3`] for a 4 x 4 matrix (the triangle-hold equivalent's augmented system).
-fn expm4(m: &Matrix4<f64>) -> Matrix4<f64> {
-    let norm = m.abs().row_sum().max();
-    let s = if norm > 0.5 {
-        (norm / 0.5).log2().ceil() as i32
-    } else {
-        0
-    };
-    let a = m / 2f64.powi(s);
-    let mut term = Matrix4::identity();
-    let mut sum = Matrix4::identity();
+    let mut term = SMatrix::<f64, N, N>::identity();
+    let mut sum = SMatrix::<f64, N, N>::identity();
     for k in 1..=20 {
         term = term * a / k as f64;
         sum += term;
@@ -239,7 +219,7 @@ fn discretise_mode(
         });
     }
     if hold == 0.0 {
-        let e = expm3(&(m * ts));
+        let e = expm(&(m * ts));
         return Ok(Discrete {
             phi: Matrix2::new(e[(0, 0)], e[(0, 1)], e[(1, 0)], e[(1, 1)]),
             gamma: Vector2::new(e[(0, 2)], e[(1, 2)]),
@@ -250,7 +230,7 @@ fn discretise_mode(
     let mut a = Matrix4::zeros();
     a.fixed_view_mut::<3, 3>(0, 0).copy_from(&(m * ts));
     a[(2, 3)] = 1.0;
-    let e = expm4(&a);
+    let e = expm(&a);
     let phi = Matrix2::new(e[(0, 0)], e[(0, 1)], e[(1, 0)], e[(1, 1)]);
     let g1 = Vector2::new(e[(0, 2)], e[(1, 2)]);
     let g2 = Vector2::new(e[(0, 3)], e[(1, 3)]);
@@ -325,7 +305,7 @@ impl Dynamics {
                 ),
             });
         }
-        let e = expm3(&(m * ts));
+        let e = expm(&(m * ts));
         Ok((
             Matrix2::new(e[(0, 0)], e[(0, 1)], e[(1, 0)], e[(1, 1)]),
             Vector2::new(e[(0, 2)], e[(1, 2)]),
