@@ -316,7 +316,21 @@ fn a_narx_model_from_identify_compensates_the_plant_it_was_identified_on() {
                 "{name} {greybox} {kind}: {off} of {} samples off the model",
                 r.len()
             );
-            assert!(off * 1000 <= r.len(), "{name} {kind}: {off} samples off");
+            if c.delay == c.relative_degree {
+                assert!(off * 1000 <= r.len(), "{name} {kind}: {off} samples off");
+            } else {
+                // a longer preview than the model's relative degree (a base whose modes answer
+                // their newest input by a hair): close to the model, not exact
+                let e: Vec<f64> = (c.delay + c.seeded..r.len())
+                    .map(|k| c.model_output[0][k] - r[k])
+                    .collect();
+                let rms = hystbench::metrics::rms(&e) / range;
+                println!(
+                    "{name} {kind}: preview {} > {}, RMS {rms:.2e} of the range off the model",
+                    c.delay, c.relative_degree
+                );
+                assert!(rms < 5e-3, "{name} {kind}: RMS {rms} off the model");
+            }
             let [(unc, com, range)] = track(&truth, &m, &[r])[..] else {
                 unreachable!()
             };

@@ -198,6 +198,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if a.json {
         crate::cli::print(&serde_json::to_string(&serde_json::json!({
             "delay": c.delay,
+            "relative_degree": c.relative_degree,
             "samples": n,
             "seconds": seconds,
             "seeded": c.seeded,
@@ -208,12 +209,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         for w in clipped_lines(&c, &r.time) {
             eprintln!("{w}");
         }
+        let longer = if c.delay > c.relative_degree {
+            format!(
+                ", longer than the {} after which the output answers: the inverse there missed \
+                 the reference",
+                c.relative_degree
+            )
+        } else {
+            String::new()
+        };
         crate::cli::print(&format!(
-            "compensated {} ({} samples, preview {} sample{}) in {:.2} s; wrote {}",
+            "compensated {} ({} samples, preview {} sample{}{}) in {:.2} s; wrote {}",
             a.model.display(),
             n,
             c.delay,
             if c.delay == 1 { "" } else { "s" },
+            longer,
             seconds,
             a.out.display()
         ));

@@ -232,6 +232,7 @@ pub fn execute(a: &Args) -> anyhow::Result<TrackResult> {
     )?;
     let json = serde_json::json!({
         "delay": c.delay,
+        "relative_degree": c.relative_degree,
         "samples": r.time.len(),
         "seeded": c.seeded,
         "clipped": c.clipped,

@@ -11,7 +11,11 @@
 //! degree, found by probing: 0 for hysteresis, creep, drift and saturation (the output moves
 //! with the input), 1 through the library's second-order dynamics (its zero-order-hold
 //! discretisation has a one-sample delay, and its sampling zero near -0.27 makes the one-step
-//! inverse stable): the compensator previews the reference by `delay` samples.
+//! inverse stable): the compensator previews the reference by `delay` samples. Where the
+//! output answers its newest input only by a hair (a hold between zero and first order with a
+//! small first-order share), the inverse at that delay cannot steer it and misses the
+//! reference: a longer preview, up to [`MAX_PREVIEW`], is taken where it clearly misses fewer
+//! samples.
 //! Each effect is inverted in its own terms on the copy (a play operator's state, a creep
 //! chain's memory, a mode's two states), so a new effect of the library is inverted without a
 //! line here. A multi-input plant (a 2-DoF cantilever with cross paths) is inverted by
@@ -110,6 +114,11 @@ pub struct Compensation {
     pub inputs: Vec<Vec<f64>>,
     /// The preview: the input at sample k aims at the reference at k + delay.
     pub delay: usize,
+    /// The samples after which an input change first shows in an output ([`relative_degree`]);
+    /// a longer `delay` was taken where the inverse at it missed the reference (the model then
+    /// follows the reference closely, not exactly: the input at k moves the output before
+    /// k + delay).
+    pub relative_degree: usize,
     /// Samples from rest over which the model's outputs do not answer its inputs (a NARX
     /// model's seed; 0 for the effect library's models): the input stays at rest there.
     pub seeded: usize,
@@ -124,7 +133,7 @@ pub struct Compensation {
 }
 
 /// The plant's relative degree: the fewest samples after which a change of an input shows in
-/// an output (at most 4), probed from rest with pushes of both signs growing from `scale` by
+/// an output (at most [`MAX_PREVIEW`]), probed from rest with pushes of both signs growing from `scale` by
 /// decades (a play operator with a threshold above a small push does not move).
 fn relative_degree<S: Stepped>(state: &S, scale: &[f64]) -> usize {
     let (ni, no) = (state.inputs(), state.outputs());
@@ -134,7 +143,7 @@ fn relative_degree<S: Stepped>(state: &S, scale: &[f64]) -> usize {
     for _ in 0..state.seeded() {
         state.step(&vec![0.0; ni], &mut y);
     }
-    for d in 0..=4 {
+    for d in 0..=MAX_PREVIEW {
         for j in 0..ni {
             for m in 0..8 {
                 for sign in [1.0, -1.0] {
@@ -400,7 +409,53 @@ pub fn compensate_stepped<S: Stepped>(
         .collect();
     // a first step for the brackets: a hundredth of the input a unit static gain would need
     let scale: Vec<f64> = (0..ni).map(|j| (0.01 * ranges[j]).max(1e-6)).collect();
-    let delay = relative_degree(state, &scale);
+    let first = relative_degree(state, &scale);
+    // samples where the inverse did not meet the reference (an unstable one swings between
+    // the bounds it may search in, the actuator's or the known inputs')
+    let missed = |c: &Result<Compensation, CompensateError>| {
+        c.as_ref().map_or(usize::MAX, |c| {
+            c.unreachable
+                .iter()
+                .chain(&c.clipped)
+                .map(|u| u.count)
+                .sum()
+        })
+    };
+    // the smallest preview whose inverse follows the reference; a longer one where it clearly
+    // misses fewer samples (an output that answers its newest input only by a hair, as a
+    // hold between zero and first order with a small first-order share does, cannot be
+    // steered by it: the one-step inverse swings between the known inputs' bounds)
+    let mut best = follow(model, reference, opts, &ranges, &scale, first, first);
+    for delay in first + 1..=MAX_PREVIEW {
+        let m = missed(&best);
+        if m == 0 {
+            break;
+        }
+        let next = follow(model, reference, opts, &ranges, &scale, first, delay);
+        if missed(&next).saturating_mul(2) > m {
+            break;
+        }
+        best = next;
+    }
+    best
+}
+
+/// The longest preview [`compensate_stepped`] tries (samples), as [`relative_degree`] probes.
+pub const MAX_PREVIEW: usize = 4;
+
+/// The compensating input of `model` at preview `delay` (`first`: its relative degree).
+fn follow<S: Stepped>(
+    model: &Named<S>,
+    reference: &[&[f64]],
+    opts: &CompensateOptions,
+    ranges: &[f64],
+    scale: &[f64],
+    first: usize,
+    delay: usize,
+) -> Result<Compensation, CompensateError> {
+    let state = &model.state;
+    let (ni, no) = (state.inputs(), state.outputs());
+    let n = reference.first().map_or(0, |r| r.len());
     let seeded = state.seeded();
     let actuator: Vec<Option<(f64, f64)>> = (0..ni)
         .map(|j| opts.limits.get(j).copied().flatten())
@@ -484,6 +539,7 @@ pub fn compensate_stepped<S: Stepped>(
     Ok(Compensation {
         inputs,
         delay,
+        relative_degree: first,
         seeded,
         clipped: marks(&clipped_at, &model.inputs, n),
         unreachable: marks(&unreachable_at, &model.inputs, n),
@@ -633,6 +689,37 @@ mod tests {
                 assert!((y - 5.0).abs() < 1e-9, "sample {k}: {y} at the limit");
             }
         }
+    }
+
+    /// A mode discretised with a little first-order hold answers its newest input by a hair:
+    /// the one-step inverse at that delay swings between the actuator's limits; a longer
+    /// preview follows the reference.
+    #[test]
+    fn a_hair_of_feedthrough_takes_a_longer_preview() {
+        let text = r#"{"name": "held", "inputs": ["u"], "outputs": [{"name": "y",
+            "paths": [{"input": "u", "hysteresis": {"prandtl_ishlinskii":
+                {"linear_weight": 0.8, "thresholds": [1.0, 2.0], "weights": [0.1, 0.1]}}}],
+            "dynamics": {"natural_frequency_hz": 40.0, "damping_ratio": 0.2,
+                "first_order_hold": 0.01}}]}"#;
+        let path = Path::new("held.json");
+        let p = PlantSpec::parse(path, text).unwrap().check(path).unwrap();
+        let ts = 1e-3;
+        let r: Vec<f64> = (0..3000)
+            .map(|k| 5.0 * (2.0 * std::f64::consts::PI * 2.0 * k as f64 * ts).sin())
+            .collect();
+        let opts = CompensateOptions {
+            limits: vec![Some((-40.0, 40.0))],
+            ..CompensateOptions::default()
+        };
+        let c = compensate(&p, &[&r], ts, &opts).unwrap();
+        assert_eq!(c.relative_degree, 0);
+        assert!(c.delay > 0, "preview {}", c.delay);
+        assert_eq!(c.clipped[0].count + c.unreachable[0].count, 0, "{c:?}");
+        let refs: Vec<&[f64]> = c.inputs.iter().map(Vec::as_slice).collect();
+        let y = p.simulate(&refs, ts).unwrap();
+        let e: Vec<f64> = (c.delay..r.len()).map(|k| y[0][k] - r[k]).collect();
+        let rms = crate::metrics::rms(&e) / crate::metrics::ptp(&r);
+        assert!(rms < 1e-3, "preview {}: RMS {rms} of the range", c.delay);
     }
 
     /// Along a smooth reference, the previous sample's slope brackets the next root at once:

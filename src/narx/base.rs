@@ -62,12 +62,11 @@ use std::path::Path;
 /// reverses), [`LINEAR_BASE`].
 ///
 /// The two-mode lists (`modes`: a second mode, the hold between samples, and each path's own
-/// share of the second mode) are tried on records of several inputs only
-/// ([`lists_for`]): a cross path of a 2-DoF cantilever passes through both beams' modes
-/// (records from plants written apart, `benches/independent`: 29 -> 40 of 60 2-DoF short
-/// records at 0.99). On 1-DoF records they changed nothing measured (development zoo seed 34)
-/// and broke the inverse of a model identified on a Prandtl-Ishlinskii record (`compensate`:
-/// every sample off the model; not yet understood).
+/// share of the second mode) hold what plants written apart (`benches/independent`) showed
+/// the others miss: a mode discretised by first-order hold or Tustin, a second mode, and a
+/// 2-DoF cross path through both beams' modes (independent development seed 2: 2-DoF short
+/// 29 -> 40 of 60 records at 0.99; 1-DoF long 31 -> 35 of 55 at 0.999, 1-DoF short 60 -> 61
+/// of 65 at 0.99).
 pub const BASE_EFFECTS: [&str; 8] = [
     "bouc-wen",
     "hysteresis",
@@ -79,21 +78,10 @@ pub const BASE_EFFECTS: [&str; 8] = [
     "hysteresis,modes",
 ];
 
-/// The lists of [`BASE_EFFECTS`] tried on `train`: the two-mode ones on records of several
-/// inputs only.
-fn lists_for(train: &IoRecord) -> Vec<&'static str> {
-    let several = train.inputs.len() > 1;
-    BASE_EFFECTS
-        .iter()
-        .copied()
-        .filter(|l| several || !l.split(',').any(|e| e == "modes"))
-        .collect()
-}
-
 /// The samples of a long record's fitting part that the base's lists are fitted on to choose
 /// among them (the first ones): a grey-box model has tens of parameters, which 20,000 samples
 /// determine; the lists chosen are then refitted on the whole fitting part. On a record of
-/// 150,000 samples this fits the six lists on a third of the fitting part each.
+/// 150,000 samples this fits the eight lists on a third of the fitting part each.
 pub const BASE_SELECTION_SAMPLES: usize = 20_000;
 
 /// The direction reversals of each input that the selection part of a long record holds at
@@ -433,7 +421,7 @@ fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
         // on all of it ([`refit_picked`])
         let selection = selection_samples(train, n_fit);
         let fit = |list: &'static str| long_candidates(train, list, selection, true);
-        let fitted: Vec<Vec<Candidate>> = lists_for(train).par_iter().map(|l| fit(l)).collect();
+        let fitted: Vec<Vec<Candidate>> = BASE_EFFECTS.par_iter().map(|l| fit(l)).collect();
         let c: Vec<Candidate> = fitted.into_iter().flatten().collect();
         if c.is_empty() {
             return fit(LINEAR_BASE).into_iter().collect();
@@ -456,9 +444,9 @@ fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
     };
     // simplest first: each list with its ridges from the strongest; independent fits, in
     // parallel, kept in that order
-    let grid: Vec<(&'static str, f64, bool)> = lists_for(train)
-        .into_iter()
-        .flat_map(|l| {
+    let grid: Vec<(&'static str, f64, bool)> = BASE_EFFECTS
+        .iter()
+        .flat_map(|&l| {
             let ridges: &[f64] = if bouc_wen_only(l) { &[0.0] } else { &RIDGES };
             let maps: &[f64] = if bouc_wen_only(l) {
                 &[]
