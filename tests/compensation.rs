@@ -381,6 +381,7 @@ fn narx_from_the_command_line(m: &hystbench::narx::FittedNarx, plant_name: &str)
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["delay"], m.config.decimation * m.config.lags.delay, "{v}");
+    assert_eq!(v["relative_degree"], v["delay"], "{v}");
     assert_eq!(
         std::fs::read_to_string(at("u.csv"))
             .unwrap()

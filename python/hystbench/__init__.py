@@ -388,7 +388,8 @@ def improve(model, u, y, ts, max_steps=4, train_fraction=None, outliers="refuse"
 def compensate(model, reference, ts, limits=None):
     """The input that makes the model follow ``reference`` (one signal per output), as
     ``hystbench compensate``: a dict with ``u`` (the input), ``y`` (the model's output under
-    it), ``delay``, ``clipped`` and ``unreachable``."""
+    it), ``delay`` (the preview taken), ``relative_degree``, ``clipped`` and
+    ``unreachable``."""
     r = _signals(reference, "reference", len(model.outputs))
     lim = [None] * len(model.inputs) if limits is None else [
         None if l is None else (float(l[0]), float(l[1])) for l in limits

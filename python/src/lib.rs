@@ -687,6 +687,7 @@ fn compensate<'py>(
         .map_err(py_err)?;
     let rest = serde_json::json!({
         "delay": c.delay,
+        "relative_degree": c.relative_degree,
         "seeded": c.seeded,
         "clipped": c.clipped,
         "unreachable": c.unreachable,

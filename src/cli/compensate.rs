@@ -33,7 +33,7 @@ pub struct Args {
     /// Replace an existing output file.
     #[arg(long)]
     pub force: bool,
-    /// Print one JSON object: {"delay", "samples", "seconds", "clipped": [...]}.
+    /// Print one JSON object: {"delay", "relative_degree", "samples", "seconds", "seeded", "clipped": [...], "unreachable": [...]}.
     #[arg(long)]
     pub json: bool,
 }
