@@ -407,3 +407,72 @@ fn extra_effects_are_drawn_on_top_of_the_default_zoo() {
     );
     assert!(!dir.path().join("z2").exists());
 }
+
+/// `--extra dynamics` puts a second mode and a hold on top of an output's mode (or a mode with
+/// both on an output without one); the rest of every member is the default zoo's.
+#[test]
+fn extra_dynamics_draws_a_second_mode_and_a_hold() {
+    use hystbench::effect::dynamics::{DynamicsSpec, NAME as DYNAMICS};
+    use hystbench::plant::PlantSpec;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("zoo");
+    let o = hystbench(&[
+        "zoo",
+        "--count",
+        "8",
+        "--seed",
+        "3",
+        "--extra",
+        "dynamics",
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let index = ZooIndex::read(&out).unwrap();
+    let (mut on_top, mut new) = (0, 0);
+    for e in &index.members {
+        let mut p = PlantSpec::read(&out.join(&e.plant)).unwrap();
+        let default = zoo::member(3, e.index).plant;
+        for (o, d) in p.outputs.iter_mut().zip(&default.outputs) {
+            let dyn_of = |fx: &[Box<dyn hystbench::effect::spec::EffectSpec>]| {
+                fx.iter()
+                    .find(|x| x.effect() == DYNAMICS)
+                    .and_then(|x| x.as_any().downcast_ref::<DynamicsSpec>().copied())
+            };
+            let (now, before) = (dyn_of(&o.effects), dyn_of(&d.effects));
+            if now == before {
+                continue;
+            }
+            let now = now.expect("dynamics drawn");
+            let m2 = now.second_mode.expect("a second mode");
+            assert!(
+                m2.natural_frequency_hz > now.natural_frequency_hz,
+                "{now:?}"
+            );
+            assert!(
+                m2.natural_frequency_hz <= 0.25 / e.sampling_period_s + 1e-9,
+                "{now:?}"
+            );
+            assert!((0.0..=1.0).contains(&now.first_order_hold), "{now:?}");
+            match before {
+                Some(b) => {
+                    on_top += 1;
+                    assert_eq!(
+                        (b.natural_frequency_hz, b.damping_ratio, b.dc_gain),
+                        (now.natural_frequency_hz, now.damping_ratio, now.dc_gain)
+                    );
+                }
+                None => new += 1,
+            }
+            o.effects.retain(|x| x.effect() != DYNAMICS);
+        }
+        let mut rest = default.outputs.clone();
+        for (o, r) in p.outputs.iter().zip(rest.iter_mut()) {
+            if o.effects.len() < r.effects.len() {
+                r.effects.retain(|x| x.effect() != DYNAMICS);
+            }
+        }
+        assert_eq!(p.outputs, rest, "member {}", e.index);
+    }
+    assert!(on_top + new > 0, "no second mode drawn on 8 members");
+}

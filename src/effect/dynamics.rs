@@ -1068,6 +1068,25 @@ pub fn draw(ctx: &DrawContext, dice: &mut Dice) -> DynamicsSpec {
     }
 }
 
+/// A second mode and a hold drawn on top of `base` (the zoo's `--extra dynamics`): the second
+/// mode 1.5 to 5 times the first's frequency (below Nyquist/2), damping 0.02 to 0.3, a share
+/// of 0.05 to 0.5 of either sign, and a hold between zero- and first-order uniform in [0, 1]
+/// (what the plants written apart showed the one-mode family misses, docs/benchmarks.md).
+pub fn draw_on_top(base: &DynamicsSpec, ts: f64, dice: &mut Dice) -> DynamicsSpec {
+    let nyquist = 0.5 / ts;
+    let f2 = (base.natural_frequency_hz * dice.log_uniform(1.5, 5.0)).min(0.5 * nyquist);
+    let share = dice.log_uniform(0.05, 0.5) * if dice.chance(0.25) { -1.0 } else { 1.0 };
+    DynamicsSpec {
+        second_mode: Some(ModeSpec {
+            natural_frequency_hz: f2.max(base.natural_frequency_hz * 1.01),
+            damping_ratio: dice.log_uniform(0.02, 0.3),
+            share,
+        }),
+        first_order_hold: dice.uniform(0.0, 1.0),
+        ..*base
+    }
+}
+
 impl Effect for DynamicsEffect {
     fn name(&self) -> EffectName {
         NAME
@@ -1096,6 +1115,34 @@ impl Effect for DynamicsEffect {
     }
     fn draw(&self, ctx: &DrawContext, dice: &mut Dice) -> Option<Box<dyn EffectSpec>> {
         Some(Box::new(draw(ctx, dice)))
+    }
+    /// An output without dynamics: a mode as the zoo draws it, with a second mode and a hold.
+    fn draw_on_output(
+        &self,
+        _output: &[f64],
+        ts: f64,
+        dice: &mut Dice,
+    ) -> Option<Box<dyn EffectSpec>> {
+        let nyquist = 0.5 / ts;
+        let base = DynamicsSpec::mode(
+            dice.log_uniform(nyquist / 100.0, nyquist / 3.0),
+            dice.log_uniform(0.02, 0.7),
+        );
+        Some(Box::new(draw_on_top(&base, ts, dice)))
+    }
+    /// A mode without a second one: a second mode and a hold on top of it.
+    fn draw_onto(
+        &self,
+        existing: &dyn EffectSpec,
+        _output: &[f64],
+        ts: f64,
+        dice: &mut Dice,
+    ) -> Option<Box<dyn EffectSpec>> {
+        let base = existing.as_any().downcast_ref::<DynamicsSpec>()?;
+        if base.second_mode.is_some() {
+            return None;
+        }
+        Some(Box::new(draw_on_top(base, ts, dice)))
     }
     fn basis<'a>(&self, ctx: &BasisContext<'a>) -> Option<BasisBank<'a>> {
         Some(basis(ctx))

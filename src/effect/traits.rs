@@ -88,6 +88,18 @@ pub trait Effect: Send + Sync + 'static {
     ) -> Option<Box<dyn EffectSpec>> {
         None
     }
+    /// For the zoo's `--extra` effects on an output that already has this effect: `existing`
+    /// with more drawn on top of it (a second mode and a hold on a mode). `None`: the output
+    /// keeps what it has.
+    fn draw_onto(
+        &self,
+        _existing: &dyn EffectSpec,
+        _output: &[f64],
+        _ts: f64,
+        _dice: &mut Dice,
+    ) -> Option<Box<dyn EffectSpec>> {
+        None
+    }
     /// For an effect that is a structure: does the plant have it?
     fn in_structure(&self, _plant: &StructureView) -> bool {
         false

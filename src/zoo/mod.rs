@@ -236,6 +236,7 @@ fn draw_extra(
         .scenario
         .check(&scen_path)
         .map_err(|source| ZooError::Scenario { index, source })?;
+    let mut drawn: Vec<(String, String)> = Vec::new();
     for &name in extra {
         let Some(effect) = crate::effect::registry::effect(name) else {
             continue;
@@ -252,31 +253,30 @@ fn draw_extra(
                 continue;
             }
             let y = &clean.record.outputs[o].values;
-            if let Some(spec) = effect.draw_on_output(y, clean.record.ts, &mut dice) {
+            let ts = clean.record.ts;
+            if let Some(at) = out.effects.iter().position(|s| s.effect() == name) {
+                // drawn on top of what the output has (a second mode on its mode)
+                if let Some(spec) = effect.draw_onto(out.effects[at].as_ref(), y, ts, &mut dice) {
+                    out.effects[at] = spec;
+                    drawn.push((out.name.clone(), format!("{name} on top")));
+                }
+            } else if let Some(spec) = effect.draw_on_output(y, ts, &mut dice) {
                 out.effects.push(spec);
                 // in registry (chain) order
                 out.effects.sort_by_key(|s| s.effect());
+                drawn.push((out.name.clone(), name.to_string()));
             }
         }
     }
-    m.plant.description += &format!(" Extra effects drawn: {}.", {
-        let names: Vec<String> = m
-            .plant
-            .outputs
-            .iter()
-            .flat_map(|o| {
-                o.effects
-                    .iter()
-                    .filter(|e| extra.contains(&e.effect()))
-                    .map(move |e| format!("{}: {}", o.name, e.effect()))
-            })
-            .collect();
-        if names.is_empty() {
+    let drawn: Vec<String> = drawn.iter().map(|(o, e)| format!("{o}: {e}")).collect();
+    m.plant.description += &format!(
+        " Extra effects drawn: {}.",
+        if drawn.is_empty() {
             "none".to_string()
         } else {
-            names.join(", ")
+            drawn.join(", ")
         }
-    });
+    );
     Ok(())
 }
 
