@@ -267,6 +267,15 @@ fn run_with(
                     },
                     if e.diverged_members_test.is_empty() {
                         String::new()
+                    } else if e.diverged_members_test.len() == 1 + o.ensemble.len()
+                        && model.base.is_some()
+                    {
+                        // every member left out: the grey-box base stands in
+                        format!(
+                            "; members {:?} (most or all) diverged on the test record: the \
+                             grey-box base alone predicts it",
+                            e.diverged_members_test
+                        )
                     } else {
                         format!(
                             "; members {:?} diverged on the test record and were left out",

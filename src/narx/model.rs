@@ -201,7 +201,8 @@ pub struct OutputPrediction {
     /// combination (listed here, and in the evaluation); when every member diverged, the
     /// output diverged. On an output with a grey-box base under its network, a residual
     /// network that diverged is left out the same way (every member listed) and the grey-box
-    /// alone is the prediction.
+    /// alone is the prediction; so is a network chosen over its base when most of its members
+    /// diverged.
     pub diverged_members: Vec<usize>,
     /// Half-width of the prediction band at each sample (physical units; a free run of a model
     /// with a calibrated band, [`super::band`]), else `None`.
@@ -351,7 +352,22 @@ impl FittedNarx {
         let mut preds = self.predict_sampled(&resid, mode)?;
         let alone = self.networks_alone(base, rec, mode)?;
         for (o, p) in preds.iter_mut().enumerate() {
+            let members = self.outputs[o].ensemble.len() + 1;
             match base.uses(o) {
+                super::base::BaseUse::Network
+                    if p.diverged_at.is_some() || 2 * p.diverged_members.len() > members =>
+                {
+                    // most of the ensemble left the plausible range on this record (inputs the
+                    // training record did not visit): the network is unstable here, and the
+                    // grey-box base it beat on validation stands in, with its own band
+                    p.values = g[o].clone();
+                    p.diverged_at = None;
+                    p.diverged_members = (0..members).collect();
+                    p.half_width = match (mode, &base.outputs[o].base_band) {
+                        (Mode::FreeRun, Some(b)) => Some(vec![b.half_width(0.0); g[o].len()]),
+                        _ => None,
+                    };
+                }
                 super::base::BaseUse::Network => {}
                 super::base::BaseUse::BaseAndNetwork if p.diverged_at.is_some() => {
                     // the residual network left its range (a record whose start the base,
