@@ -357,11 +357,9 @@ fn the_loop_over_a_small_zoo_names_the_hidden_effects() {
 
 /// `--extra drift,saturation` adds the effects sized by each output's range, from a stream of
 /// their own: without them every member is the default zoo's; with them the records change.
-#[test]
-fn extra_effects_are_drawn_on_top_of_the_default_zoo() {
-    use hystbench::plant::PlantSpec;
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("zoo");
+/// The 8 members of seed 3 with `extra` drawn on top, in `dir/zoo`.
+fn extra_zoo(dir: &Path, extra: &str) -> (std::path::PathBuf, ZooIndex) {
+    let out = dir.join("zoo");
     let o = hystbench(&[
         "zoo",
         "--count",
@@ -369,12 +367,20 @@ fn extra_effects_are_drawn_on_top_of_the_default_zoo() {
         "--seed",
         "3",
         "--extra",
-        "drift,saturation",
+        extra,
         "--out",
         s(&out),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let index = ZooIndex::read(&out).unwrap();
+    (out, index)
+}
+
+#[test]
+fn extra_effects_are_drawn_on_top_of_the_default_zoo() {
+    use hystbench::plant::PlantSpec;
+    let dir = tempfile::tempdir().unwrap();
+    let (out, index) = extra_zoo(dir.path(), "drift,saturation");
     assert_eq!(index.extra.len(), 2);
     let mut drawn = 0;
     for e in &index.members {
@@ -415,20 +421,7 @@ fn extra_dynamics_draws_a_second_mode_and_a_hold() {
     use hystbench::effect::dynamics::{DynamicsSpec, NAME as DYNAMICS};
     use hystbench::plant::PlantSpec;
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("zoo");
-    let o = hystbench(&[
-        "zoo",
-        "--count",
-        "8",
-        "--seed",
-        "3",
-        "--extra",
-        "dynamics",
-        "--out",
-        s(&out),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let index = ZooIndex::read(&out).unwrap();
+    let (out, index) = extra_zoo(dir.path(), "dynamics");
     let (mut on_top, mut new) = (0, 0);
     for e in &index.members {
         let mut p = PlantSpec::read(&out.join(&e.plant)).unwrap();

@@ -133,8 +133,8 @@ pub struct Compensation {
 }
 
 /// The plant's relative degree: the fewest samples after which a change of an input shows in
-/// an output (at most [`MAX_PREVIEW`]), probed from rest with pushes of both signs growing from `scale` by
-/// decades (a play operator with a threshold above a small push does not move).
+/// an output (at most [`MAX_PREVIEW`]), probed from rest with pushes of both signs growing
+/// from `scale` by decades (a play operator with a threshold above a small push does not move).
 fn relative_degree<S: Stepped>(state: &S, scale: &[f64]) -> usize {
     let (ni, no) = (state.inputs(), state.outputs());
     // past the seed, where the outputs answer the inputs
