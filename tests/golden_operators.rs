@@ -59,6 +59,7 @@ fn prandtl_ishlinskii_matches_reference_to_1e9() {
         initial_state: f(&q["initial_state"]),
         input_map: None,
         dead_zones: None,
+        envelope_split: None,
     }
     .check()
     .unwrap();

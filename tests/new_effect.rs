@@ -165,7 +165,7 @@ impl Effect for ElectrostrictionEffect {
             u2: square(setup.u),
         }))
     }
-    fn parameter_count(&self, _variant: usize, _plays: usize) -> (usize, usize) {
+    fn parameter_count(&self, _size: hystbench::effect::fitting::BasisSize) -> (usize, usize) {
         (1, 0)
     }
 }

@@ -31,6 +31,7 @@ fn piezo_pi() -> Hysteresis {
         initial_state: 0.0,
         input_map: None,
         dead_zones: None,
+        envelope_split: None,
     })
     .check()
     .unwrap()

@@ -40,6 +40,11 @@ pub struct Args {
     /// takes a few distinct levels, a staircase, gets no more than they determine).
     #[arg(long)]
     pub plays: Option<usize>,
+    /// Generalised plays on the default hysteresis operator: ascending and descending
+    /// envelopes apart, their split e(u) = c0 + c1 u + c2 u^2 fitted (Al Janaideh, Rakheja &
+    /// Su 2011), for loops wider at one end of the input than at the other.
+    #[arg(long)]
+    pub envelope_split: bool,
     /// Overwrite an existing model file.
     #[arg(long)]
     pub force: bool,
@@ -52,8 +57,9 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let cfg =
+    let mut cfg =
         GreyBoxConfig::from_effect_list(&a.effects)?.with_fit_options(a.plays, a.train_fraction)?;
+    cfg.options.envelope_split = a.envelope_split;
     check_writable(&a.out, a.force)?;
     // the record itself is predicted; the fit's memory goes with the part it fits
     let io = crate::cli::read_screened(

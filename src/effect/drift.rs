@@ -291,7 +291,7 @@ impl Effect for DriftEffect {
     fn output_term(&self, setup: &OutputSetup) -> Option<Box<dyn TermFit>> {
         Some(Box::new(DriftTerm::new(setup)))
     }
-    fn parameter_count(&self, _variant: usize, _plays: usize) -> (usize, usize) {
+    fn parameter_count(&self, _size: super::fitting::BasisSize) -> (usize, usize) {
         (0, 1 + FIT_TAUS.len())
     }
 }

@@ -1199,8 +1199,8 @@ impl Effect for DynamicsEffect {
             z_bounds,
         }))
     }
-    fn parameter_count(&self, variant: usize, _plays: usize) -> (usize, usize) {
-        match variant {
+    fn parameter_count(&self, size: super::fitting::BasisSize) -> (usize, usize) {
+        match size.variant {
             1 => (1, MODES_SHARED),
             _ => (0, 2),
         }

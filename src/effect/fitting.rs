@@ -96,6 +96,17 @@ impl PreviousPath {
 /// (`OutputProblem::theta_with_new`).
 pub const SECOND_STAGE_PARAM: &str = "second_stage";
 
+/// What sizes an effect's parameters on one output's model (`Effect::parameter_count`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BasisSize {
+    /// The variant chosen (index into `Effect::variants`, 0 = the default).
+    pub variant: usize,
+    /// Play operators per Prandtl-Ishlinskii path.
+    pub plays: usize,
+    /// The default operator's plays generalised ([`PathSetup::envelope_split`]).
+    pub envelope_split: bool,
+}
+
 /// What a path term is built from.
 #[derive(Debug, Clone)]
 pub struct PathSetup<'a> {
@@ -120,6 +131,9 @@ pub struct PathSetup<'a> {
     /// Fewer plays on an input of a few distinct levels (a staircase), as many as they
     /// determine (`hysteresis::plays_determined`); off where a ridge bounds the terms.
     pub plays_by_levels: bool,
+    /// The default hysteresis operator's plays generalised, their envelopes split by fitted
+    /// parameters (`graybox::FitOptions::envelope_split`).
+    pub envelope_split: bool,
     /// The variant chosen (index into `Effect::variants`, 0 = the default).
     pub variant: usize,
     /// The path's first-stage fit, in the second stage of a two-stage fit.

@@ -15,7 +15,8 @@ use super::fitting::{
 };
 use super::play::{play_operator, Play};
 use super::prandtl_ishlinskii::{
-    dead_zone, DeadZoneSpec, PrandtlIshlinskii, PrandtlIshlinskiiOp, PrandtlIshlinskiiSpec,
+    dead_zone, envelope_split, DeadZoneSpec, PrandtlIshlinskii, PrandtlIshlinskiiOp,
+    PrandtlIshlinskiiSpec,
 };
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
 use super::{finite, Effect, EffectError, EffectName, Operator, Slot};
@@ -79,6 +80,7 @@ impl HysteresisSpec {
             HysteresisSpec::PrandtlIshlinskii(s) => {
                 let neg = |w: &[f64]| w.iter().map(|w| -w).collect();
                 HysteresisSpec::PrandtlIshlinskii(PrandtlIshlinskiiSpec {
+                    envelope_split: s.envelope_split,
                     linear_weight: -s.linear_weight,
                     thresholds: s.thresholds.clone(),
                     weights: neg(&s.weights),
@@ -308,6 +310,7 @@ fn draw_positive(ctx: &DrawContext, dice: &mut Dice, d: f64) -> HysteresisSpec {
                 }
             };
             HysteresisSpec::PrandtlIshlinskii(PrandtlIshlinskiiSpec {
+                envelope_split: None,
                 linear_weight: d * (1.0 - share),
                 thresholds,
                 weights,
@@ -397,6 +400,62 @@ struct PiTerm<'a> {
     bw_memo: BwMemo,
     /// The Bouc-Wen column (its input range and the path's sign), when there is one.
     bw: Option<Bw>,
+    /// The split of the plays' envelopes (generalised plays), fixed or fitted.
+    split: Split,
+}
+
+/// The envelopes' split e(u) = c0 + c1 u + c2 u^2 of a term's plays
+/// ([`PrandtlIshlinskiiSpec::envelope_split`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Split {
+    /// Classical plays.
+    None,
+    /// A split given (the operator of a first stage, [`OutputMapTerm`]).
+    Fixed([f64; 3]),
+    /// Three parameters after the Bouc-Wen column's, e(u) = R (p0 + p1 u / R + p2 (u / R)^2)
+    /// with R the input's range, each kept inside [-[`SPLIT_LIMIT`], [`SPLIT_LIMIT`]].
+    Free { range: f64 },
+}
+
+/// The largest normalised split coefficient ([`Split::Free`]): e(u) at most the input's range.
+const SPLIT_LIMIT: f64 = 1.0;
+
+const SPLIT_PARAMS: [&str; 3] = [
+    "generalised_play.split0",
+    "generalised_play.split1",
+    "generalised_play.split2",
+];
+
+/// How a pass over a term's plays runs.
+#[derive(Debug, Clone, Copy)]
+struct PlayPass {
+    /// The plays generalised by this split (`None`: classical plays).
+    split: Option<[f64; 3]>,
+    /// The groups of plays in parallel or (false: under a lock, where a thread must not take
+    /// other parallel work) one after the other.
+    parallel: bool,
+}
+
+impl Split {
+    fn n_params(&self) -> usize {
+        if matches!(self, Split::Free { .. }) {
+            3
+        } else {
+            0
+        }
+    }
+
+    /// The coefficients [c0, c1, c2] at the term's split parameters `p` (None: classical).
+    fn at(&self, p: &[f64]) -> Option<[f64; 3]> {
+        match *self {
+            Split::None => None,
+            Split::Fixed(c) => Some(c),
+            Split::Free { range } => {
+                let c = [range * p[0], p[1], p[2] / range];
+                c.iter().any(|&v| v != 0.0).then_some(c)
+            }
+        }
+    }
 }
 
 /// Ramps of the static input map beside `plays` plays: 8 with 39 plays, fewer on the shorter
@@ -505,6 +564,17 @@ fn bw_memoized(u: &[f64], bw: Bw, th: &[f64], memo: &BwMemo) -> std::sync::Arc<V
 
 impl<'a> PiTerm<'a> {
     fn new(u: &'a [f64], thresholds: Vec<f64>, sign: f64, knots: Vec<f64>, bw: Option<Bw>) -> Self {
+        Self::with_split(u, thresholds, sign, knots, bw, Split::None)
+    }
+
+    fn with_split(
+        u: &'a [f64],
+        thresholds: Vec<f64>,
+        sign: f64,
+        knots: Vec<f64>,
+        bw: Option<Bw>,
+        split: Split,
+    ) -> Self {
         let mut t = PiTerm {
             u,
             thresholds,
@@ -513,16 +583,25 @@ impl<'a> PiTerm<'a> {
             cached: None,
             bw_memo: BwMemo::default(),
             bw,
+            split,
         };
         let bytes = (t.thresholds.len() + t.knots.len()) * u.len() * 8;
         if bytes <= CACHED_COLUMNS_BYTES {
             let mut z = vec![0.0; t.thresholds.len()];
             let mut cols = vec![Vec::new(); t.thresholds.len() + t.knots.len()];
             let all = vec![true; cols.len()];
-            t.columns_on(0..u.len(), &mut z, None, &mut cols, &all);
+            let e = t.split.at(&[0.0; 3]);
+            t.columns_on(0..u.len(), &mut z, None, e, &mut cols, &all);
             t.cached = Some(cols);
         }
         t
+    }
+
+    /// The envelopes' split at the term's parameters `th` (None: classical plays).
+    fn split_at(&self, th: &[f64]) -> Option<[f64; 3]> {
+        let at = bw_n_params(self.bw);
+        self.split
+            .at(th.get(at..at + self.split.n_params()).unwrap_or(&[]))
     }
 
     /// The Bouc-Wen column at `th`, when the term has one.
@@ -533,20 +612,25 @@ impl<'a> PiTerm<'a> {
     /// The plays (from states `z`, updated), the ramps and the Bouc-Wen column (from
     /// `bw_whole`, the column over the whole record) on the input samples `u` at `rows`,
     /// written into `out` (one buffer per column); only the columns where `wanted` is set (a
-    /// play left out keeps its state: it is left out of the whole pass).
+    /// play left out keeps its state: it is left out of the whole pass). The plays are
+    /// generalised ones where `split` is given.
     fn columns_on(
         &self,
         rows: Range<usize>,
         z: &mut [f64],
         bw_whole: Option<&[f64]>,
+        split: Option<[f64; 3]>,
         out: &mut [Vec<f64>],
         wanted: &[bool],
     ) {
-        self.columns_on_with(rows, z, bw_whole, out, wanted, true)
+        let pass = PlayPass {
+            split,
+            parallel: true,
+        };
+        self.columns_on_with(rows, z, bw_whole, out, wanted, pass)
     }
 
-    /// [`PiTerm::columns_on`], the groups of plays in parallel or (`parallel` false: under a
-    /// lock, where a thread must not take other parallel work) one after the other.
+    /// [`PiTerm::columns_on`], run as `pass` says.
     fn columns_on_with(
         &self,
         rows: Range<usize>,
@@ -554,9 +638,13 @@ impl<'a> PiTerm<'a> {
         bw_whole: Option<&[f64]>,
         out: &mut [Vec<f64>],
         wanted: &[bool],
-        parallel: bool,
+        pass: PlayPass,
     ) {
+        let PlayPass { split, parallel } = pass;
         let u = &self.u[rows.clone()];
+        // generalised plays: each sample's thresholds r - e(u)
+        let shift: Option<Vec<f64>> =
+            split.map(|c| u.iter().map(|&v| envelope_split(&c, v)).collect());
         let sign = self.sign;
         let np = self.thresholds.len();
         let (plays, rest) = out.split_at_mut(np);
@@ -576,7 +664,14 @@ impl<'a> PiTerm<'a> {
                 o.clear();
                 o.reserve(u.len());
             }
-            if let [a0, a1, a2, a3, a4, a5, a6, a7] = group {
+            if let Some(e) = &shift {
+                for (r, z, o) in group.iter_mut() {
+                    o.extend(u.iter().zip(e).map(|(&v, &e)| {
+                        **z = play_operator(v, *r - e, **z);
+                        **z
+                    }));
+                }
+            } else if let [a0, a1, a2, a3, a4, a5, a6, a7] = group {
                 let r = [a0.0, a1.0, a2.0, a3.0, a4.0, a5.0, a6.0, a7.0];
                 let mut zz = [*a0.1, *a1.1, *a2.1, *a3.1, *a4.1, *a5.1, *a6.1, *a7.1];
                 for &v in u {
@@ -630,6 +725,45 @@ impl<'a> PiTerm<'a> {
         }
     }
 
+    /// d/dp_j of sum_i coef_i (sign P_i[u]) over the whole record, p_j the term's `j`-th split
+    /// parameter: a play on its ascending edge u + e(u) - r moves with de/dp_j, on its
+    /// descending edge u - e(u) + r against it, and holds its derivative in between (exact
+    /// but at the switches, as the play's own derivative in its threshold).
+    fn split_derivative(&self, th: &[f64], j: usize, coef: &[f64]) -> Vec<f64> {
+        let mut sum = vec![0.0; self.u.len()];
+        let Split::Free { range } = self.split else {
+            return sum;
+        };
+        let c = self.split_at(th).unwrap_or([0.0; 3]);
+        // c = [range p0, p1, p2 / range] (`Split::at`)
+        let de = |v: f64| match j {
+            0 => range,
+            1 => v,
+            _ => v * v / range,
+        };
+        for (&r, &k) in self.thresholds.iter().zip(coef) {
+            if k == 0.0 {
+                continue;
+            }
+            let w = if self.sign <= 0.0 { -k } else { k };
+            let (mut z, mut dz) = (0.0, 0.0);
+            for (s, &v) in sum.iter_mut().zip(self.u) {
+                let t = r - envelope_split(&c, v);
+                // play_operator: max(v - t, min(v + t, z))
+                if v + t < z {
+                    z = v + t;
+                    dz = -de(v);
+                }
+                if v - t > z {
+                    z = v - t;
+                    dz = de(v);
+                }
+                *s += w * dz;
+            }
+        }
+        sum
+    }
+
     /// Which columns must have c >= 0: the plays and the Bouc-Wen column.
     fn nonnegative(&self) -> Vec<bool> {
         let mut v = vec![true; self.thresholds.len()];
@@ -646,13 +780,35 @@ impl TermFit for PiTerm<'_> {
         self.thresholds.len() + self.knots.len() + usize::from(self.bw.is_some())
     }
     fn n_params(&self) -> usize {
-        bw_n_params(self.bw)
+        bw_n_params(self.bw) + self.split.n_params()
     }
     fn param_names(&self) -> Vec<&'static str> {
-        bw_param_names(self.bw)
+        let mut names = bw_param_names(self.bw);
+        if self.split.n_params() > 0 {
+            names.extend(SPLIT_PARAMS);
+        }
+        names
     }
+    fn param_bounds(&self) -> Vec<(f64, f64)> {
+        let mut b = vec![(f64::NEG_INFINITY, f64::INFINITY); bw_n_params(self.bw)];
+        b.extend(std::iter::repeat_n(
+            (-SPLIT_LIMIT, SPLIT_LIMIT),
+            self.split.n_params(),
+        ));
+        b
+    }
+    /// The Bouc-Wen column's grid, the plays classical (a split of 0) at every point.
     fn start_grid(&self) -> Vec<Vec<f64>> {
-        bw_start_grid(self.bw)
+        let mut g = bw_start_grid(self.bw);
+        let n = self.split.n_params();
+        if n > 0 {
+            if g.is_empty() {
+                g.push(Vec::new());
+            }
+            g.iter_mut()
+                .for_each(|p| p.extend(std::iter::repeat_n(0.0, n)));
+        }
+        g
     }
     fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>> {
         let bw = self.bw_at(th);
@@ -660,7 +816,8 @@ impl TermFit for PiTerm<'_> {
         let mut out = vec![Vec::new(); self.n_columns()];
         let all = vec![true; out.len()];
         let bw = bw.as_ref().map(|c| c.as_slice());
-        self.columns_on(0..self.u.len(), &mut z, bw, &mut out, &all);
+        let split = self.split_at(th);
+        self.columns_on(0..self.u.len(), &mut z, bw, split, &mut out, &all);
         out.into_iter()
             .zip(self.nonnegative())
             .map(|(c, nonneg)| (Cow::Owned(c), nonneg))
@@ -684,7 +841,13 @@ impl TermFit for PiTerm<'_> {
             None
         };
         let bw = bw.as_ref().map(|c| c.as_slice());
-        match &self.cached {
+        let split = self.split_at(th);
+        // the kept columns are those at the term's own split (0 where it is fitted)
+        let kept = self
+            .cached
+            .as_ref()
+            .filter(|_| split == self.split.at(&[0.0; 3]));
+        match kept {
             Some(cached) => {
                 for ((o, c), _) in out.iter_mut().zip(cached).zip(wanted).filter(|(_, w)| **w) {
                     o.clear();
@@ -695,11 +858,15 @@ impl TermFit for PiTerm<'_> {
                     o.extend_from_slice(&b[rows]);
                 }
             }
-            None => self.columns_on(rows, &mut state.carry, bw, out, wanted),
+            None => self.columns_on(rows, &mut state.carry, bw, split, out, wanted),
         }
         self.nonnegative()
     }
     fn derivative(&self, th: &[f64], q: usize, coef: &[f64]) -> Vec<f64> {
+        let nbw = bw_n_params(self.bw);
+        if q >= nbw {
+            return self.split_derivative(th, q - nbw, coef);
+        }
         let bw = self
             .bw
             .expect("a term with parameters has its Bouc-Wen column");
@@ -720,6 +887,7 @@ impl TermFit for PiTerm<'_> {
             weights: coef[n..n + m].to_vec(),
         });
         let spec = PrandtlIshlinskiiSpec {
+            envelope_split: self.split_at(th),
             linear_weight: gain,
             thresholds: self.thresholds.clone(),
             weights: coef[..n].iter().map(|w| self.sign * w).collect(),
@@ -864,7 +1032,8 @@ impl<'a> OutputMapTerm<'a> {
             .input_map
             .as_ref()
             .map_or_else(Vec::new, |m| m.thresholds.clone());
-        let x = PiTerm::new(setup.u, pi.thresholds.clone(), 1.0, ramps, None);
+        let split = pi.envelope_split.map_or(Split::None, Split::Fixed);
+        let x = PiTerm::with_split(setup.u, pi.thresholds.clone(), 1.0, ramps, None, split);
         Some(OutputMapTerm {
             u: setup.u,
             pi: pi.clone(),
@@ -902,8 +1071,14 @@ impl<'a> OutputMapTerm<'a> {
         let mut wanted = vec![false; out.len()];
         wanted[q] = true;
         let mut z = vec![0.0; self.x.thresholds.len()];
-        self.x
-            .columns_on(0..self.u.len(), &mut z, None, &mut out, &wanted);
+        self.x.columns_on(
+            0..self.u.len(),
+            &mut z,
+            None,
+            self.x.split_at(&[]),
+            &mut out,
+            &wanted,
+        );
         Cow::Owned(std::mem::take(&mut out[q]))
     }
 
@@ -947,7 +1122,11 @@ impl<'a> OutputMapTerm<'a> {
             Some(c) => c.iter().map(|c| &c[rows.clone()]).collect(),
             None => {
                 if wanted.iter().any(|w| *w) {
-                    self.x.columns_on_with(rows, z, None, x, wanted, parallel);
+                    let pass = PlayPass {
+                        split: self.x.split_at(&[]),
+                        parallel,
+                    };
+                    self.x.columns_on_with(rows, z, None, x, wanted, pass);
                 }
                 x.iter().map(Vec::as_slice).collect()
             }
@@ -1522,16 +1701,31 @@ impl Effect for HysteresisEffect {
                     (0, None) => input_map_knots(&seen, input_map_ramps(count)),
                     _ => Vec::new(),
                 };
-                Box::new(PiTerm::new(u, thresholds, setup.sign, knots, bw))
+                let split = if v == 0 && setup.envelope_split {
+                    Split::Free {
+                        range: max_abs(&seen),
+                    }
+                } else {
+                    Split::None
+                };
+                Box::new(PiTerm::with_split(
+                    u, thresholds, setup.sign, knots, bw, split,
+                ))
             }
         })
     }
     fn path_without(&self, gain: f64) -> Option<Box<dyn EffectSpec>> {
         Some(Box::new(HysteresisSpec::Linear(LinearSpec { gain })))
     }
-    fn parameter_count(&self, variant: usize, plays: usize) -> (usize, usize) {
-        match variant {
-            0 => (3 + plays + input_map_ramps(plays), 0),
+    fn parameter_count(&self, size: super::fitting::BasisSize) -> (usize, usize) {
+        let split = if size.envelope_split {
+            SPLIT_PARAMS.len()
+        } else {
+            0
+        };
+        let plays = size.plays;
+        match size.variant {
+            0 => (3 + split + plays + input_map_ramps(plays), 0),
             1 => (plays, 0),
             _ => (3, 0),
         }
@@ -1673,6 +1867,7 @@ mod tests {
             })
         };
         let pi = HysteresisSpec::PrandtlIshlinskii(PrandtlIshlinskiiSpec {
+            envelope_split: None,
             linear_weight: 0.5,
             thresholds: vec![1.0, 2.5, 4.0],
             weights: vec![0.2, 0.1, 0.05],
@@ -1822,6 +2017,7 @@ mod tests {
             .map(|k| 4.0 * (k as f64 * 0.011).sin() * (1.0 + 0.4 * (k as f64 * 0.0013).cos()))
             .collect();
         let pi = PrandtlIshlinskiiSpec {
+            envelope_split: None,
             linear_weight: 0.7,
             thresholds: vec![0.5, 1.2, 2.0, 2.9],
             weights: vec![0.2, 0.1, 0.05, 0.02],
@@ -1848,6 +2044,7 @@ mod tests {
             sign: 1.0,
             plays: 5,
             plays_by_levels: false,
+            envelope_split: false,
             variant: 0,
             previous: Some(prev.clone()),
         };
@@ -1910,6 +2107,7 @@ mod tests {
     /// A first-stage operator (one play) and its output `z`, as the output map's stage gets it.
     fn first_stage_of(z: &[f64]) -> (PrandtlIshlinskiiSpec, super::super::fitting::PreviousPath) {
         let pi = PrandtlIshlinskiiSpec {
+            envelope_split: None,
             linear_weight: 1.0,
             thresholds: vec![1.0],
             weights: vec![0.5],
@@ -1936,6 +2134,7 @@ mod tests {
             sign: 1.0,
             plays: 5,
             plays_by_levels: true,
+            envelope_split: false,
             variant: 1,
             previous: Some(prev.clone()),
         }

@@ -43,6 +43,14 @@ pub struct PrandtlIshlinskiiSpec {
     /// Optional dead-zone superposition for asymmetric loops (Kuhnen).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dead_zones: Option<DeadZoneSpec>,
+    /// Optional split of the plays' envelopes, [c0, c1, c2]: generalised plays whose
+    /// ascending edge follows u + e(u) - r_i and descending edge u - e(u) + r_i, with
+    /// e(u) = c0 + c1 u + c2 u^2 (output units of the input; c1 per unit, c2 per unit squared),
+    /// so every threshold becomes r_i - e(u). Without it the plays are classical (e = 0).
+    /// Different ascending and descending envelopes give loops whose width changes along the
+    /// input, asymmetric about its middle (Al Janaideh, Rakheja & Su 2011).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub envelope_split: Option<[f64; 3]>,
 }
 
 /// Dead-zone superposition S[y] = sum_j c_j S_{d_j}(y).
@@ -64,6 +72,8 @@ pub struct PrandtlIshlinskii {
     pub initial_state: f64,
     pub input_map: Option<(Vec<f64>, Vec<f64>)>,
     pub dead_zones: Option<(Vec<f64>, Vec<f64>)>,
+    /// The envelopes' split e(u) = c0 + c1 u + c2 u^2, when there is one.
+    pub envelope_split: Option<[f64; 3]>,
 }
 
 fn increasing(field: &str, v: &[f64], strictly_positive: bool) -> Result<(), EffectError> {
@@ -120,6 +130,11 @@ impl PrandtlIshlinskiiSpec {
                 Some((d, c))
             }
         };
+        if let Some(c) = &self.envelope_split {
+            for (i, &v) in c.iter().enumerate() {
+                finite(&format!("envelope_split[{i}]"), v)?;
+            }
+        }
         Ok(PrandtlIshlinskii {
             linear_weight: self.linear_weight,
             thresholds: self.thresholds.clone(),
@@ -127,6 +142,7 @@ impl PrandtlIshlinskiiSpec {
             initial_state: self.initial_state,
             input_map,
             dead_zones,
+            envelope_split: self.envelope_split.filter(|c| c.iter().any(|&v| v != 0.0)),
         })
     }
 }
@@ -208,6 +224,14 @@ pub fn dead_zone(y: f64, d: f64) -> f64 {
     }
 }
 
+/// The envelopes' split e(u) = c0 + c1 u + c2 u^2 of generalised plays
+/// ([`PrandtlIshlinskiiSpec::envelope_split`]): the play of threshold r at input u is the
+/// classical play of threshold r - e(u).
+#[inline]
+pub fn envelope_split(c: &[f64; 3], u: f64) -> f64 {
+    c[0] + u * (c[1] + u * c[2])
+}
+
 impl PrandtlIshlinskii {
     /// The operator with every play at its initial state.
     pub fn operator(&self) -> PrandtlIshlinskiiOp {
@@ -237,6 +261,13 @@ impl PrandtlIshlinskii {
                 "input_map",
                 f64::NAN,
                 "a static input map has no closed-form inverse (compensate inverts it numerically)",
+            ));
+        }
+        if self.envelope_split.is_some() {
+            return Err(bad(
+                "envelope_split",
+                f64::NAN,
+                "generalised plays have no closed-form inverse here (compensate inverts them numerically)",
             ));
         }
         if self.initial_state != 0.0 {
@@ -283,6 +314,7 @@ impl PrandtlIshlinskii {
                 initial_state: 0.0,
                 input_map: None,
                 dead_zones: None,
+                envelope_split: None,
             },
             dead_zones: self.dead_zones.clone(),
         })
@@ -385,8 +417,9 @@ impl Operator for PrandtlIshlinskiiOp {
     fn step(&mut self, u: f64) -> f64 {
         let p = &self.params;
         let mut y = p.linear_weight * u;
+        let e = p.envelope_split.map_or(0.0, |c| envelope_split(&c, u));
         for ((z, &r), &w) in self.states.iter_mut().zip(&p.thresholds).zip(&p.weights) {
-            *z = play_operator(u, r, *z);
+            *z = play_operator(u, r - e, *z);
             y += w * *z;
         }
         if let Some((z, a)) = &p.input_map {
@@ -409,6 +442,7 @@ mod tests {
 
     fn spec() -> PrandtlIshlinskiiSpec {
         PrandtlIshlinskiiSpec {
+            envelope_split: None,
             linear_weight: 0.6,
             thresholds: vec![4.0, 8.0, 12.0],
             weights: vec![0.1, 0.07, 0.05],
@@ -460,6 +494,71 @@ mod tests {
         });
         let e = map.check().unwrap().inverse().unwrap_err().to_string();
         assert!(e.contains("input_map"), "{e}");
+    }
+
+    /// Generalised plays (Al Janaideh, Rakheja & Su 2011): a zero split is the classical
+    /// operator to the bit; with a split, a play driven far up rides its ascending envelope
+    /// u + e(u) - r and driven far down its descending one u - e(u) + r; the loop stays rate
+    /// independent; and it has no closed-form inverse, which the error says.
+    #[test]
+    fn generalised_plays_follow_their_envelopes() {
+        let u: Vec<f64> = (0..4_000)
+            .map(|k| 25.0 * (k as f64 * 2e-3 * std::f64::consts::TAU).sin())
+            .collect();
+        let classical = spec().check().unwrap().operator().apply(&u);
+        let mut zero = spec();
+        zero.envelope_split = Some([0.0; 3]);
+        let zero = zero.check().unwrap();
+        assert!(zero.envelope_split.is_none());
+        assert_eq!(zero.operator().apply(&u), classical);
+
+        let c = [0.5, 0.05, 0.002];
+        let single = PrandtlIshlinskiiSpec {
+            linear_weight: 0.0,
+            thresholds: vec![4.0],
+            weights: vec![1.0],
+            envelope_split: Some(c),
+            ..spec()
+        };
+        let p = single.check().unwrap();
+        let z = p.operator().apply(&u);
+        let e = |v: f64| envelope_split(&c, v);
+        // near the top of the first rise (k = 125, u = 25) and the bottom of the fall (k = 375)
+        for (k, edge) in [(120, 1.0), (370, -1.0)] {
+            let v = u[k];
+            let want = v + edge * (e(v) - 4.0);
+            assert!(
+                (z[k] - want).abs() < 1e-12,
+                "sample {k}: {} vs {want}",
+                z[k]
+            );
+        }
+        // the loop is not symmetric: its width at +20 differs from that at -20
+        let width = |at: f64| {
+            let (mut up, mut down) = (f64::NAN, f64::NAN);
+            for k in 1_000..2_000 {
+                if (u[k] - at).abs() < 0.2 {
+                    if u[k] > u[k - 1] {
+                        up = z[k];
+                    } else {
+                        down = z[k];
+                    }
+                }
+            }
+            down - up
+        };
+        let (wp, wn) = (width(20.0), width(-20.0));
+        assert!((wp - wn).abs() > 1.0, "widths {wp} and {wn}");
+        // rate independence: the same path at half the rate, every other sample
+        let slow: Vec<f64> = (0..8_000)
+            .map(|k| 25.0 * (k as f64 * 1e-3 * std::f64::consts::TAU).sin())
+            .collect();
+        let zs = p.operator().apply(&slow);
+        for k in (0..4_000).step_by(97) {
+            assert!((zs[2 * k] - z[k]).abs() < 1e-9, "sample {k}");
+        }
+        let err = p.inverse().unwrap_err().to_string();
+        assert!(err.contains("envelope_split"), "{err}");
     }
 
     #[test]

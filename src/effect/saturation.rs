@@ -289,7 +289,7 @@ impl Effect for SaturationEffect {
     fn sensor(&self) -> Option<Box<dyn SensorFit>> {
         Some(Box::new(SaturationFit))
     }
-    fn parameter_count(&self, _variant: usize, _plays: usize) -> (usize, usize) {
+    fn parameter_count(&self, _size: super::fitting::BasisSize) -> (usize, usize) {
         (0, 2)
     }
 }

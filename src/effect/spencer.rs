@@ -482,7 +482,7 @@ impl Effect for SpencerEffect {
         }))
     }
     /// Five nonlinear parameters and the coefficient c1 per path.
-    fn parameter_count(&self, _variant: usize, _plays: usize) -> (usize, usize) {
+    fn parameter_count(&self, _size: super::fitting::BasisSize) -> (usize, usize) {
         (6, 0)
     }
 }

@@ -173,7 +173,7 @@ pub trait Effect: Send + Sync + 'static {
         None
     }
     /// Parameters it adds per path and per output (to size the record it needs).
-    fn parameter_count(&self, _variant: usize, _plays: usize) -> (usize, usize) {
+    fn parameter_count(&self, _size: super::fitting::BasisSize) -> (usize, usize) {
         (0, 0)
     }
     /// The play operators a path of `plays` gets on the record's fitted inputs: fewer where

@@ -252,7 +252,7 @@ impl Effect for ViscousEffect {
     }
     /// Not counted in the record length the fit needs (as before the effect library became one
     /// trait: the same records are refused).
-    fn parameter_count(&self, _variant: usize, _plays: usize) -> (usize, usize) {
+    fn parameter_count(&self, _size: super::fitting::BasisSize) -> (usize, usize) {
         (0, 0)
     }
 }

@@ -35,6 +35,12 @@ pub struct FitOptions {
     /// it fits better ([`GreyBoxConfig::fit_stages`] also gives the first stage's plant; a
     /// chosen ridge does not enter the second stage).
     pub output_map: bool,
+    /// Fit the default operator's plays as generalised plays: their ascending and descending
+    /// envelopes split by e(u) = c0 + c1 u + c2 u^2, three parameters more per path
+    /// (`PrandtlIshlinskiiSpec::envelope_split`; Al Janaideh, Rakheja & Su 2011). Off by
+    /// default: the NARX base cross-validates a short record's lists both ways and keeps the
+    /// split where the held-out samples ask for it.
+    pub envelope_split: bool,
     /// A record too short for creep time constants over two decades gets one or two (the
     /// most between 5 samples and a third of the record) instead of being refused.
     pub parsimonious_creep: bool,
@@ -77,6 +83,7 @@ impl Default for FitOptions {
             choose_ridge: false,
             adapt_plays: true,
             output_map: true,
+            envelope_split: false,
             parsimonious_creep: true,
             samples_per_parameter: 10,
             starts_rows: STARTS_ROWS,

@@ -372,6 +372,7 @@ impl GreyBoxConfig {
             previous: Vec::new(),
             parsimonious: self.options.parsimonious_creep,
             plays_by_levels: self.plays_by_levels(),
+            envelope_split: self.options.envelope_split,
         })
     }
 
@@ -408,7 +409,11 @@ impl GreyBoxConfig {
         let chosen = self.chosen();
         let (mut per_path, mut per_output) = (1, 0);
         for c in &chosen {
-            let (p, o) = c.effect.parameter_count(c.variant, self.options.plays);
+            let (p, o) = c.effect.parameter_count(crate::effect::fitting::BasisSize {
+                variant: c.variant,
+                plays: self.options.plays,
+                envelope_split: self.options.envelope_split,
+            });
             per_path += p;
             per_output += o;
         }
@@ -1547,8 +1552,19 @@ mod tests {
         effects: &str,
         held_out: Option<std::ops::Range<usize>>,
     ) -> (OutputProblem<'a>, Vec<f64>) {
+        problem_with(rec, effects, held_out, false)
+    }
+
+    /// [`problem_at`], with the default operator's plays generalised or not.
+    fn problem_with<'a>(
+        rec: &'a IoRecord,
+        effects: &str,
+        held_out: Option<std::ops::Range<usize>>,
+        envelope_split: bool,
+    ) -> (OutputProblem<'a>, Vec<f64>) {
         let mut cfg = GreyBoxConfig::from_effect_list(effects).unwrap();
         cfg.options.plays = 5;
+        cfg.options.envelope_split = envelope_split;
         cfg.check_record(rec).unwrap();
         let u: Vec<&[f64]> = rec.inputs.iter().map(|s| s.values.as_slice()).collect();
         let st = cfg.structure(rec, 0).unwrap();
@@ -2049,6 +2065,18 @@ mod tests {
             let (prob, th) = problem_at(&rec, effects, None);
             assert_derivatives_match(&prob, &th, effects, 1e-4);
         }
+        // generalised plays: three split parameters more per path of the default operator
+        for (m, effects) in [
+            (1, "hysteresis,creep,dynamics"),
+            (2, "hysteresis,modes,coupling"),
+        ] {
+            let rec = record(m, 20_000);
+            let (plain, _) = problem_at(&rec, effects, None);
+            let (prob, th) = problem_with(&rec, effects, None, true);
+            assert_eq!(prob.n_theta(), plain.n_theta() + 3 * m, "{effects}");
+            // a small step: a play switches edges where the split moves its threshold
+            assert_derivatives_match(&prob, &th, &format!("{effects} + envelope split"), 1e-7);
+        }
     }
 
     /// The analytic derivatives of `prob` at `th` (fixed linear coefficients) against central
@@ -2137,6 +2165,7 @@ mod tests {
         use crate::effect::prandtl_ishlinskii::{DeadZoneSpec, PrandtlIshlinskiiSpec};
         use crate::effect::Operator;
         let first = PrandtlIshlinskiiSpec {
+            envelope_split: None,
             linear_weight: 0.6,
             thresholds: vec![4.0, 9.0, 15.0, 22.0],
             weights: vec![0.1, 0.0, 0.06, 0.03],

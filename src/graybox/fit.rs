@@ -211,6 +211,8 @@ pub(crate) struct OutputStructure {
     pub parsimonious: bool,
     /// [`crate::effect::fitting::PathSetup::plays_by_levels`].
     pub plays_by_levels: bool,
+    /// [`crate::effect::fitting::PathSetup::envelope_split`].
+    pub envelope_split: bool,
 }
 
 impl OutputStructure {
@@ -580,6 +582,7 @@ impl<'a> OutputProblem<'a> {
                     sign,
                     plays,
                     plays_by_levels: structure.plays_by_levels,
+                    envelope_split: structure.envelope_split,
                     variant: c.variant,
                     previous: structure.previous.get(k).cloned().flatten(),
                 };
