@@ -413,8 +413,8 @@ fn the_second_stage_comes_with_the_first_stage_it_replaced() {
     let rec = record(
         &plant,
         r#"{"name": "sines", "sampling_period_s": 0.001, "samples": 6000, "noise_std": 0.0,
-        "seed": 2, "inputs": [{"sum": [{"triangle": {"amplitude": 28.0, "frequency_hz": 0.5}},
-        {"sine": {"amplitude": 10.0, "frequency_hz": 6.0}}]}]}"#,
+        "seed": 2, "inputs": [{"decaying_sine": {"amplitude": 38.0, "frequency_hz": 2.0,
+        "decay_time_s": 3.0}}]}"#,
     );
     let mut cfg = GreyBoxConfig::from_effect_list("hysteresis").unwrap();
     cfg.options.plays = 15;

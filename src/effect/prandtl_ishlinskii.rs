@@ -45,7 +45,7 @@ pub struct PrandtlIshlinskiiSpec {
     pub dead_zones: Option<DeadZoneSpec>,
     /// Optional split of the plays' envelopes, [c0, c1, c2]: generalised plays whose
     /// ascending edge follows u + e(u) - r_i and descending edge u - e(u) + r_i, with
-    /// e(u) = c0 + c1 u + c2 u^2 (output units of the input; c1 per unit, c2 per unit squared),
+    /// e(u) = c0 + c1 u + c2 u^2 (c0 in units of the input, c1 unitless, c2 per unit),
     /// so every threshold becomes r_i - e(u). Without it the plays are classical (e = 0).
     /// Different ascending and descending envelopes give loops whose width changes along the
     /// input, asymmetric about its middle (Al Janaideh, Rakheja & Su 2011).
