@@ -420,7 +420,8 @@ enum Split {
 /// The largest normalised split coefficient ([`Split::Free`]): e(u) at most the input's range.
 const SPLIT_LIMIT: f64 = 1.0;
 
-const SPLIT_PARAMS: [&str; 3] = [
+/// The names of the envelope split's parameters ([`Split::Free`]).
+pub const SPLIT_PARAMS: [&str; 3] = [
     "generalised_play.split0",
     "generalised_play.split1",
     "generalised_play.split2",

@@ -6,6 +6,7 @@ use super::fit::{levenberg_marquardt, Chosen, LmResult, OutputProblem, OutputStr
 use super::{FitSummary, FittedGreyBox, GreyBoxConfig, GreyBoxError, OutputFit};
 use crate::data::IoRecord;
 use crate::effect::fitting::{PreviousPath, RecordError, RecordView, SECOND_STAGE_PARAM};
+use crate::effect::hysteresis::SPLIT_PARAMS;
 use crate::effect::{registry, Slot};
 use crate::plant::{Plant, PlantSpec, Units};
 use rayon::prelude::*;
@@ -323,6 +324,13 @@ struct StagedOutput {
     spec: crate::plant::OutputSpec,
     run: LmResult,
     first_stage: Option<crate::plant::OutputSpec>,
+}
+
+/// A fitted first stage's parameters and the names of its terms' parameters
+/// ([`OutputProblem::term_param_names`]): where a second stage, or generalised plays, start.
+struct FirstStage {
+    theta: Vec<f64>,
+    names: Vec<Vec<&'static str>>,
 }
 
 impl GreyBoxConfig {
@@ -836,9 +844,11 @@ impl GreyBoxConfig {
         Ok(fitted)
     }
 
-    /// Fit output `o` of the training record without the samples `excluded` marks: its
-    /// problem, the warm starts of the variants that name one, the two-stage
-    /// Levenberg-Marquardt; the fitted output spec and the run.
+    /// Fit output `o` of the training record without the samples `excluded` marks
+    /// ([`GreyBoxConfig::fit_output_staged`]). Generalised plays
+    /// ([`super::FitOptions::envelope_split`]) are fitted from the classical fit's first
+    /// stage (a split of 0), and the classical fit is kept when they do not lower its cost:
+    /// the nested model is never worse on its samples.
     fn fit_output_values(
         &self,
         train: &IoRecord,
@@ -847,6 +857,41 @@ impl GreyBoxConfig {
         u: &[&[f64]],
         names: &[String],
     ) -> Result<StagedOutput, GreyBoxError> {
+        if !self.options.envelope_split {
+            return Ok(self
+                .fit_output_staged(train, o, excluded, u, names, None)?
+                .0);
+        }
+        let mut classical = self.clone();
+        classical.options.envelope_split = false;
+        let (plain, first) = classical.fit_output_staged(train, o, excluded, u, names, None)?;
+        let (split, _) = self.fit_output_staged(train, o, excluded, u, names, Some(&first))?;
+        if std::env::var_os("HYSTBENCH_TRACE").is_some() {
+            eprintln!(
+                "envelope split: cost {:.6e} (classical {:.6e}) held-out {:?}",
+                split.run.eval.cost, plain.run.eval.cost, self.options.held_out
+            );
+        }
+        Ok(if split.run.eval.cost < plain.run.eval.cost {
+            split
+        } else {
+            plain
+        })
+    }
+
+    /// Fit output `o` of the training record without the samples `excluded` marks: its
+    /// problem, the warm starts of the variants that name one (or, for generalised plays,
+    /// the classical first stage `classical`), the two-stage Levenberg-Marquardt; the fitted
+    /// output spec and the run, and the first stage's parameters.
+    fn fit_output_staged(
+        &self,
+        train: &IoRecord,
+        o: usize,
+        excluded: Option<&Vec<bool>>,
+        u: &[&[f64]],
+        names: &[String],
+        classical: Option<&FirstStage>,
+    ) -> Result<(StagedOutput, FirstStage), GreyBoxError> {
         let out = &train.outputs[o];
         let mut st = self.structure(train, o)?;
         let t0 = Instant::now();
@@ -917,29 +962,36 @@ impl GreyBoxConfig {
                 &self.options,
             )
         };
-        let mut prob = problem(&st, self.options.plays);
         // a variant that names a warm start also starts from the fit with that (simpler)
         // variant, so that it is never worse than it
-        let mut extra = Vec::new();
-        let mut iterations = 0;
-        for (i, c) in st.terms.iter().enumerate() {
-            let Some(w) = c
-                .effect
-                .variants()
-                .get(c.variant)
-                .and_then(|v| v.warm_start)
-            else {
-                continue;
-            };
-            let mut st_w = st.clone();
-            st_w.terms[i].variant = w;
-            let simple = problem(&st_w, 0);
-            let r = fit(&simple, &st_w, 0, Vec::new())?;
-            iterations += r.iterations;
-            extra.push(prob.theta_from(&simple, &r.theta));
-        }
-        let mut res = fit(&prob, &st, self.options.plays, extra)?;
-        res.iterations += iterations;
+        let with_warm_starts = |st: &OutputStructure, prob: &OutputProblem, mut extra: Vec<_>| {
+            let mut iterations = 0;
+            for (i, c) in st.terms.iter().enumerate() {
+                let Some(w) = c
+                    .effect
+                    .variants()
+                    .get(c.variant)
+                    .and_then(|v| v.warm_start)
+                else {
+                    continue;
+                };
+                let mut st_w = st.clone();
+                st_w.terms[i].variant = w;
+                let simple = problem(&st_w, 0);
+                let r = fit(&simple, &st_w, 0, Vec::new())?;
+                iterations += r.iterations;
+                extra.push(prob.theta_from(&simple, &r.theta));
+            }
+            let mut res = fit(prob, st, self.options.plays, extra)?;
+            res.iterations += iterations;
+            Ok::<_, GreyBoxError>(res)
+        };
+        let mut prob = problem(&st, self.options.plays);
+        // generalised plays also start from the classical fit
+        let from_classical = classical
+            .filter(|_| st.envelope_split)
+            .and_then(|c| prob.theta_with_new(&c.theta, &c.names, &SPLIT_PARAMS));
+        let mut res = with_warm_starts(&st, &prob, from_classical.into_iter().collect())?;
         // the output without dynamics, which its fit cannot switch off, when the mode ran to
         // the edge of its band: kept when it fits better (an output of a 2-DoF record that
         // has no mode of its own, under steps)
@@ -964,7 +1016,7 @@ impl GreyBoxConfig {
                 let ridged = problem(&st, self.options.plays).with_ridge(lambda);
                 let all = vec![true; ridged.n_theta()];
                 let r = levenberg_marquardt(&ridged, res.theta.clone(), &all, &self.options)?;
-                iterations = res.iterations + r.iterations;
+                let iterations = res.iterations + r.iterations;
                 res = r;
                 res.iterations = iterations;
             }
@@ -978,6 +1030,10 @@ impl GreyBoxConfig {
             );
         }
         let spec = prob.output_spec(&res.theta, &res.eval.coef);
+        let first = FirstStage {
+            theta: res.theta.clone(),
+            names: prob.term_param_names(),
+        };
         // its basis (the play operators' outputs) is not needed by the second stage
         drop(prob);
         if self.options.output_map {
@@ -999,6 +1055,7 @@ impl GreyBoxConfig {
             if let Some((spec2, res2)) = self.output_map_stage(
                 &st,
                 &res,
+                &first.names,
                 &spec,
                 u,
                 names,
@@ -1007,18 +1064,20 @@ impl GreyBoxConfig {
                 &fit,
                 part.as_ref(),
             ) {
-                return Ok(StagedOutput {
+                let staged = StagedOutput {
                     spec: spec2,
                     run: res2,
                     first_stage: Some(spec),
-                });
+                };
+                return Ok((staged, first));
             }
         }
-        Ok(StagedOutput {
+        let staged = StagedOutput {
             spec,
             run: res,
             first_stage: None,
-        })
+        };
+        Ok((staged, first))
     }
 
     /// The second stage of a two-stage fit: each path's Prandtl-Ishlinskii operator (the
@@ -1038,6 +1097,7 @@ impl GreyBoxConfig {
         &self,
         st: &OutputStructure,
         res: &LmResult,
+        first_names: &[Vec<&'static str>],
         spec: &crate::plant::OutputSpec,
         u: &[&[f64]],
         names: &[String],
@@ -1083,7 +1143,7 @@ impl GreyBoxConfig {
                 None => whole.clone(),
             };
             let prob2 = stage_problem(&st2);
-            let theta2 = prob2.theta_with_new(&res.theta, SECOND_STAGE_PARAM)?;
+            let theta2 = prob2.theta_with_new(&res.theta, first_names, &[SECOND_STAGE_PARAM])?;
             let free = prob2.free_except(SECOND_STAGE_PARAM);
             let r2 = levenberg_marquardt(&prob2, theta2, &free, &self.options).ok()?;
             if trace {

@@ -1608,10 +1608,27 @@ impl<'a> OutputProblem<'a> {
         t
     }
 
-    /// This problem's parameters from `th`, the parameters of the same problem without the
-    /// terms' parameters named `new` (a second stage's added parameters), which start at 0.
-    /// `None` when `th` does not have the length that this takes.
-    pub fn theta_with_new(&self, th: &[f64], new: &str) -> Option<Vec<f64>> {
+    /// The names of the terms' parameters, term by term in the order of their parameters
+    /// (after the filters'): what [`OutputProblem::theta_with_new`] maps by.
+    pub fn term_param_names(&self) -> Vec<Vec<&'static str>> {
+        let mut terms: Vec<&PlacedTerm> = self.layout.terms().collect();
+        terms.sort_by_key(|t| t.params.start);
+        terms.iter().map(|t| t.term.param_names()).collect()
+    }
+
+    /// This problem's parameters from `th`, the parameters of a problem with the same filters
+    /// and terms whose parameters were named `first` ([`OutputProblem::term_param_names`]): a
+    /// term's parameter copied from the one of the same name, those named in `new` (a second
+    /// stage's added parameters, the envelope split's on classical plays) at 0, and those that
+    /// this problem's term no longer has (the envelope split that a second stage holds in its
+    /// operator) left out. `None` when `th` does not have the length that `first` names, or
+    /// a parameter is not found there.
+    pub fn theta_with_new(
+        &self,
+        th: &[f64],
+        first: &[Vec<&'static str>],
+        new: &[&str],
+    ) -> Option<Vec<f64>> {
         let mut t = vec![0.0; self.layout.n_theta];
         let mut from = 0;
         for f in &self.layout.filters {
@@ -1621,14 +1638,24 @@ impl<'a> OutputProblem<'a> {
         }
         let mut terms: Vec<&PlacedTerm> = self.layout.terms().collect();
         terms.sort_by_key(|t| t.params.start);
-        for term in terms {
+        if terms.len() != first.len() {
+            return None;
+        }
+        for (term, before) in terms.into_iter().zip(first) {
             let names = term.term.param_names();
             for (k, at) in term.params.clone().enumerate() {
-                if names.get(k) != Some(&new) {
-                    t[at] = *th.get(from)?;
-                    from += 1;
+                let name = names.get(k).copied();
+                if name.is_some_and(|n| new.contains(&n)) {
+                    continue;
                 }
+                let j = if names == *before {
+                    k
+                } else {
+                    before.iter().position(|&b| Some(b) == name)?
+                };
+                t[at] = *th.get(from + j)?;
             }
+            from += before.len();
         }
         (from == th.len()).then_some(t)
     }
