@@ -21,7 +21,7 @@
 //! - A. H. Ribeiro, L. A. Aguirre, Neurocomputing 316:222-231, 2018 (simulation error).
 
 use super::band::{Band, BAND_LEVEL};
-use super::config::{NarxConfig, Protocol, RobustSettings, SHORT_ENSEMBLE};
+use super::config::{NarxConfig, Protocol, RobustSettings};
 use super::mlp::Mlp;
 use super::model::{
     best_restart, ensemble_free_run, input_slices, names_str, DecimationSelection,
@@ -105,6 +105,14 @@ struct OutputData {
 /// One restart: the network, its record, and the numbers of fitting and validation samples.
 type Restart = (Mlp, RestartRecord, usize, usize);
 
+/// The network restarts of a short record whose grey-box base describes every output
+/// (`base::SHORT_BASE_DESCRIBES`): the base is kept on every output there, and the networks
+/// only widen its band where the two part and stand in where its free run fails. With 4
+/// instead of 8 (own zoo development seed 38, 40 short records; independent development
+/// seed 2, 120): the same test R^2 on every output, 16-20 % less time on 2-DoF short records,
+/// mean band coverage of own 2-DoF short records 93.3 -> 92.6 % (`docs/benchmarks.md`).
+pub const SECOND_OPINION_RESTARTS: usize = 4;
+
 impl NarxConfig {
     /// `identify`: fits on `train` and scores on `test`, with `split` when they are the two
     /// halves of one record (a grey-box base then runs on through the test half); halves too
@@ -141,14 +149,18 @@ impl NarxConfig {
     pub fn fit(&self, train: &IoRecord) -> Result<FittedNarx, NarxError> {
         let t0 = std::time::Instant::now();
         // a short record's base first: where it describes every output, the networks are only
-        // its second opinion (the band's spread, a fallback) and half the restarts serve
+        // its second opinion (the band's spread, a fallback) and a few restarts serve
         let short_base = self.short_base(train);
         let mut cfg = self.clone();
         if short_base
             .as_ref()
             .is_some_and(|b| b.describes_every_output)
         {
-            cfg.robust.restarts = Some(self.robust.restarts_for(train.len()).min(SHORT_ENSEMBLE));
+            cfg.robust.restarts = Some(
+                self.robust
+                    .restarts_for(train.len())
+                    .min(SECOND_OPINION_RESTARTS),
+            );
         }
         let m = cfg.fit_selecting_features(train)?;
         let (m, probe) = cfg.probe_linear(train, m)?;
