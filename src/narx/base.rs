@@ -384,14 +384,6 @@ struct Candidate {
 /// which a short record's base describes the record: a network then does not replace it.
 pub const SHORT_BASE_DESCRIBES: f64 = 0.1;
 
-/// The ridges with which a short record's lists with the default operator are
-/// cross-validated (their first stage): `graybox`'s five, a decade apart. Replays of the
-/// development zoos chose as well from 0.1, 1e-3 and 0 alone, but held-out own zoo seed 1029
-/// lost a record that way (member 139, 388 samples: `hysteresis,modes` validated at 1.4e-2
-/// with 0.01 and at 0.15-0.45 with its neighbours; without it the test R^2 fell 0.975 ->
-/// -69.7): the validation error is not smooth in the ridge on a few hundred samples.
-pub const SHORT_RIDGES: [f64; 5] = RIDGES;
-
 /// The lists whose envelope split ([`SHORT_SPLIT_RIDGES`]) a short record cross-validates: the
 /// static one alone. In replays of the development zoos (own seed 38, independent seed 2: 113
 /// short records) dropping the other lists' splits left the records at 0.99 unchanged (84 of
@@ -438,7 +430,7 @@ fn list_config(train: &IoRecord, list: &str, n_fit: usize) -> Option<GreyBoxConf
 type ShortEntry = (&'static str, f64, bool, bool);
 
 /// The candidate bases of `train`: every list of [`BASE_EFFECTS`] it supports ([`LINEAR_BASE`]
-/// when none does); on a short record each with every ridge of [`SHORT_RIDGES`] (and those with
+/// when none does); on a short record each with every ridge of [`RIDGES`] (and those with
 /// the default operator with their second stage, [`SHORT_MAP_RIDGES`], the static one with its
 /// envelope split, [`SHORT_SPLIT_LISTS`]), cross-validated over
 /// [`SHORT_FOLDS`] blocks of the whole record; else fitted on the first `n_fit` samples with
@@ -483,11 +475,10 @@ fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
         .iter()
         .flat_map(|&l| {
             let default_operator = !bouc_wen_only(l);
-            let ridges: &[f64] = if default_operator {
-                &SHORT_RIDGES
-            } else {
-                &[0.0]
-            };
+            // every ridge: held-out own zoo seed 1029 lost a record to 0.1, 1e-3 and 0 alone
+            // (member 139, 388 samples: `hysteresis,modes` validated at 1.4e-2 with 0.01 and
+            // at 0.15-0.45 with its neighbours; test R^2 0.975 -> -69.7)
+            let ridges: &[f64] = if default_operator { &RIDGES } else { &[0.0] };
             let maps: &[f64] = if default_operator {
                 &SHORT_MAP_RIDGES
             } else {

@@ -109,8 +109,8 @@ type Restart = (Mlp, RestartRecord, usize, usize);
 /// (`base::SHORT_BASE_DESCRIBES`): the base is kept on every output there, and the networks
 /// only widen its band where the two part and stand in where its free run fails. With 4
 /// instead of 8 (own zoo development seed 38, 40 short records; independent development
-/// seed 2, 120): the same test R^2 on every output, 16-20 % less time on 2-DoF short records,
-/// mean band coverage of own 2-DoF short records 93.3 -> 92.6 % (`docs/benchmarks.md`).
+/// seed 2, 120): the same test R^2 on every output; own 2-DoF short records 99 -> 79 s summed
+/// (one run after the other), mean band coverage 93.3 -> 92.6 % (`docs/benchmarks.md`).
 pub const SECOND_OPINION_RESTARTS: usize = 4;
 
 impl NarxConfig {
