@@ -647,6 +647,122 @@ fn transpose_8x8(r: [std::arch::x86_64::__m512d; 8]) -> [std::arch::x86_64::__m5
     })
 }
 
+/// [`resonate`] on the signals of `cols` four at a time in the lanes of AVX2 registers, where
+/// the processor has it (as [`eight_lanes`] does with AVX-512: each block of four samples of
+/// four signals transposed, lane `l` doing signal `l`'s arithmetic in `resonate`'s order, the
+/// same bits). Returns how many signals it filtered (a multiple of four from the first; none
+/// without AVX2 or where the four differ in length).
+fn four_lanes(
+    p: &[f64; 4],
+    gm: &[f64; 2],
+    cols: &mut [&mut [f64]],
+    states: &mut [FilterState],
+) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    if crate::numeric::simd::uses_avx2() {
+        let mut done = 0;
+        for (group, st) in cols.chunks_exact_mut(4).zip(states.chunks_exact_mut(4)) {
+            let n = group[0].len();
+            if group.iter().any(|c| c.len() != n) {
+                break;
+            }
+            let mut x: [[f64; 2]; 4] = std::array::from_fn(|l| state_of(&st[l]));
+            // SAFETY: the processor supports AVX2 (checked above); four signals of `n` samples.
+            unsafe { resonate_4(p, gm, group, &mut x) };
+            for (s, x) in st.iter_mut().zip(x) {
+                *s = x.to_vec();
+            }
+            done += 4;
+        }
+        return done;
+    }
+    let _ = (p, gm, cols, states);
+    0
+}
+
+/// [`resonate`] on four signals of one length, states `x` (updated): AVX2 lanes over whole
+/// blocks of four samples, the rest alone.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn resonate_4(p: &[f64; 4], gm: &[f64; 2], cols: &mut [&mut [f64]], x: &mut [[f64; 2]; 4]) {
+    use std::arch::x86_64::*;
+    let n = cols[0].len();
+    assert!(cols.len() == 4 && cols.iter().all(|c| c.len() == n));
+    let full = n - n % 4;
+    let [p0, p1, p2, p3] = [
+        _mm256_set1_pd(p[0]),
+        _mm256_set1_pd(p[1]),
+        _mm256_set1_pd(p[2]),
+        _mm256_set1_pd(p[3]),
+    ];
+    let [g0, g1] = [_mm256_set1_pd(gm[0]), _mm256_set1_pd(gm[1])];
+    let mut x0 = _mm256_set_pd(x[3][0], x[2][0], x[1][0], x[0][0]);
+    let mut x1 = _mm256_set_pd(x[3][1], x[2][1], x[1][1], x[0][1]);
+    let ptrs: [*mut f64; 4] = [
+        cols[0].as_mut_ptr(),
+        cols[1].as_mut_ptr(),
+        cols[2].as_mut_ptr(),
+        cols[3].as_mut_ptr(),
+    ];
+    for s in (0..full).step_by(4) {
+        // SAFETY: s + 4 <= full <= n, every signal's length
+        let w = unsafe {
+            transpose_4x4([
+                _mm256_loadu_pd(ptrs[0].add(s)),
+                _mm256_loadu_pd(ptrs[1].add(s)),
+                _mm256_loadu_pd(ptrs[2].add(s)),
+                _mm256_loadu_pd(ptrs[3].add(s)),
+            ])
+        };
+        let mut o = [_mm256_setzero_pd(); 4];
+        for (k, wk) in w.iter().enumerate() {
+            o[k] = x0;
+            let n0 = _mm256_add_pd(
+                _mm256_add_pd(_mm256_mul_pd(p0, x0), _mm256_mul_pd(p1, x1)),
+                _mm256_mul_pd(g0, *wk),
+            );
+            let n1 = _mm256_add_pd(
+                _mm256_add_pd(_mm256_mul_pd(p2, x0), _mm256_mul_pd(p3, x1)),
+                _mm256_mul_pd(g1, *wk),
+            );
+            x0 = n0;
+            x1 = n1;
+        }
+        let o = transpose_4x4(o);
+        for (l, v) in o.into_iter().enumerate() {
+            // SAFETY: as the loads
+            unsafe { _mm256_storeu_pd(ptrs[l].add(s), v) };
+        }
+    }
+    let (mut a, mut b) = ([0.0f64; 4], [0.0f64; 4]);
+    // SAFETY: four doubles each
+    unsafe {
+        _mm256_storeu_pd(a.as_mut_ptr(), x0);
+        _mm256_storeu_pd(b.as_mut_ptr(), x1);
+    }
+    for (l, c) in cols.iter_mut().enumerate() {
+        x[l] = [a[l], b[l]];
+        resonate(p, gm, &mut c[full..], &mut x[l]);
+    }
+}
+
+/// The 4 x 4 transpose of four registers of four doubles (row `l` becomes lane `l` of each).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn transpose_4x4(r: [std::arch::x86_64::__m256d; 4]) -> [std::arch::x86_64::__m256d; 4] {
+    use std::arch::x86_64::*;
+    let t0 = _mm256_unpacklo_pd(r[0], r[1]);
+    let t1 = _mm256_unpackhi_pd(r[0], r[1]);
+    let t2 = _mm256_unpacklo_pd(r[2], r[3]);
+    let t3 = _mm256_unpackhi_pd(r[2], r[3]);
+    [
+        _mm256_permute2f128_pd::<0x20>(t0, t2),
+        _mm256_permute2f128_pd::<0x20>(t1, t3),
+        _mm256_permute2f128_pd::<0x31>(t0, t2),
+        _mm256_permute2f128_pd::<0x31>(t1, t3),
+    ]
+}
+
 /// A signal's resonator state (at rest when empty).
 fn state_of(s: &FilterState) -> [f64; 2] {
     match s.as_slice() {
@@ -673,6 +789,8 @@ fn prepared(d: &Dynamics, ts: f64) -> Prepared {
                     // column's arithmetic is the same as alone)
                     let eights = eight_lanes(&p, &gm, cols, states);
                     let (cols, states) = (&mut cols[eights..], &mut states[eights..]);
+                    let fours = four_lanes(&p, &gm, cols, states);
+                    let (cols, states) = (&mut cols[fours..], &mut states[fours..]);
                     for (group, st) in cols.chunks_mut(4).zip(states.chunks_mut(4)) {
                         match (group, st) {
                             ([a, b, c, d], [sa, sb, sc, sd])
@@ -840,6 +958,118 @@ fn two_modes(a: &Discrete, b: &Discrete, out: &mut [f64], s: &mut FilterState) {
     s.copy_from_slice(&[x[0], x[1], z[0], z[1]]);
 }
 
+/// [`two_modes`] on the signals of `cols` four at a time in the lanes of AVX2 registers, where
+/// the processor has it (as [`four_lanes`] does for one mode: lane `l` doing signal `l`'s
+/// arithmetic in `two_modes`'s order, the same bits). Returns how many signals it filtered (a
+/// multiple of four from the first; none without AVX2 or where the four differ in length).
+fn two_modes_four_lanes(
+    a: &Discrete,
+    b: &Discrete,
+    cols: &mut [&mut [f64]],
+    states: &mut [FilterState],
+) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    if crate::numeric::simd::uses_avx2() {
+        let mut done = 0;
+        for (group, st) in cols.chunks_exact_mut(4).zip(states.chunks_exact_mut(4)) {
+            let n = group[0].len();
+            if group.iter().any(|c| c.len() != n) {
+                break;
+            }
+            let mut x: [[f64; 4]; 4] = std::array::from_fn(|l| match st[l].as_slice() {
+                [x0, x1, z0, z1] => [*x0, *x1, *z0, *z1],
+                _ => [0.0; 4],
+            });
+            // SAFETY: the processor supports AVX2 (checked above); four signals of `n` samples.
+            unsafe { two_modes_4(a, b, group, &mut x) };
+            for (s, x) in st.iter_mut().zip(x) {
+                *s = x.to_vec();
+            }
+            done += 4;
+        }
+        return done;
+    }
+    let _ = (a, b, cols, states);
+    0
+}
+
+/// [`two_modes`] on four signals of one length, states `x` (`[x1, x2, x3, x4]` each, updated):
+/// AVX2 lanes over whole blocks of four samples, the rest alone.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn two_modes_4(a: &Discrete, b: &Discrete, cols: &mut [&mut [f64]], x: &mut [[f64; 4]; 4]) {
+    use std::arch::x86_64::*;
+    let n = cols[0].len();
+    assert!(cols.len() == 4 && cols.iter().all(|c| c.len() == n));
+    let full = n - n % 4;
+    let set = _mm256_set1_pd;
+    let (pa, ga, ad) = (
+        [
+            set(a.phi[(0, 0)]),
+            set(a.phi[(0, 1)]),
+            set(a.phi[(1, 0)]),
+            set(a.phi[(1, 1)]),
+        ],
+        [set(a.gamma[0]), set(a.gamma[1])],
+        set(a.d),
+    );
+    let (pb, gb, bd) = (
+        [
+            set(b.phi[(0, 0)]),
+            set(b.phi[(0, 1)]),
+            set(b.phi[(1, 0)]),
+            set(b.phi[(1, 1)]),
+        ],
+        [set(b.gamma[0]), set(b.gamma[1])],
+        set(b.d),
+    );
+    let lanes = |i: usize| _mm256_set_pd(x[3][i], x[2][i], x[1][i], x[0][i]);
+    let (mut x0, mut x1, mut z0, mut z1) = (lanes(0), lanes(1), lanes(2), lanes(3));
+    let ptrs: [*mut f64; 4] = [
+        cols[0].as_mut_ptr(),
+        cols[1].as_mut_ptr(),
+        cols[2].as_mut_ptr(),
+        cols[3].as_mut_ptr(),
+    ];
+    let (add, mul) = (_mm256_add_pd, _mm256_mul_pd);
+    for s in (0..full).step_by(4) {
+        // SAFETY: s + 4 <= full <= n, every signal's length
+        let w = unsafe {
+            transpose_4x4([
+                _mm256_loadu_pd(ptrs[0].add(s)),
+                _mm256_loadu_pd(ptrs[1].add(s)),
+                _mm256_loadu_pd(ptrs[2].add(s)),
+                _mm256_loadu_pd(ptrs[3].add(s)),
+            ])
+        };
+        let mut o = [_mm256_setzero_pd(); 4];
+        for (k, &wk) in w.iter().enumerate() {
+            // (x1 + d_a w + x3) + d_b w, as `two_modes`
+            o[k] = add(add(add(x0, mul(ad, wk)), z0), mul(bd, wk));
+            let n0 = add(add(mul(pa[0], x0), mul(pa[1], x1)), mul(ga[0], wk));
+            let n1 = add(add(mul(pa[2], x0), mul(pa[3], x1)), mul(ga[1], wk));
+            let m0 = add(add(mul(pb[0], z0), mul(pb[1], z1)), mul(gb[0], wk));
+            let m1 = add(add(mul(pb[2], z0), mul(pb[3], z1)), mul(gb[1], wk));
+            (x0, x1, z0, z1) = (n0, n1, m0, m1);
+        }
+        let o = transpose_4x4(o);
+        for (l, v) in o.into_iter().enumerate() {
+            // SAFETY: as the loads
+            unsafe { _mm256_storeu_pd(ptrs[l].add(s), v) };
+        }
+    }
+    let mut st = [[0.0f64; 4]; 4];
+    for (i, v) in [x0, x1, z0, z1].into_iter().enumerate() {
+        // SAFETY: four doubles
+        unsafe { _mm256_storeu_pd(st[i].as_mut_ptr(), v) };
+    }
+    for (l, c) in cols.iter_mut().enumerate() {
+        let mut s: FilterState = (0..4).map(|i| st[i][l]).collect();
+        two_modes(a, b, &mut c[full..], &mut s);
+        x[l] = [s[0], s[1], s[2], s[3]];
+    }
+}
+
 /// The shares a path's second mode is kept within (a 2-DoF cross path through both axes'
 /// modes in equal parts has 0.5; one through the other axis' mode alone, 1).
 pub const SHARE_BOUNDS: (f64, f64) = (-1.0, 2.0);
@@ -939,7 +1169,8 @@ impl FilterFit for ModesFilter {
         Prepared::Apply(Box::new(
             move |cols: &mut [&mut [f64]], states: &mut [FilterState]| {
                 debug_assert_eq!(cols.len(), states.len(), "a state per signal");
-                for (out, s) in cols.iter_mut().zip(states.iter_mut()) {
+                let fours = two_modes_four_lanes(&a, &b, cols, states);
+                for (out, s) in cols[fours..].iter_mut().zip(states[fours..].iter_mut()) {
                     two_modes(&a, &b, out, s);
                 }
             },
@@ -1282,6 +1513,57 @@ mod tests {
         };
         assert_eq!(bits(&together(many.clone())), bits(&want));
         assert_eq!(bits(&in_blocks(many)), bits(&want));
+    }
+
+    #[test]
+    fn two_modes_side_by_side_equal_each_filtered_alone() {
+        let filter = ModesFilter {
+            ts: 1e-3,
+            f_bounds: (1.0, 400.0),
+            z_bounds: (0.01, 2.0),
+            paths: 1,
+        };
+        let th = filter.params_of((40.0, 0.05), 0.4, (150.0, 0.1), 0.3);
+        let Prepared::Apply(f) = filter.prepare_path(&th, 0) else {
+            panic!("a valid filter")
+        };
+        let col = |j: usize, n: usize| -> Vec<f64> {
+            (0..n)
+                .map(|k| ((k * (j + 2)) as f64 * 0.013).cos() + (k % 7) as f64 * 0.1)
+                .collect()
+        };
+        // eleven columns of one length (two groups of four side by side, then three alone),
+        // and one of another length among them
+        let mut cols: Vec<Vec<f64>> = (0..11).map(|j| col(j, 1001)).collect();
+        cols[5] = col(5, 700);
+        let alone: Vec<Vec<u64>> = cols
+            .iter()
+            .map(|c| {
+                let mut c = c.clone();
+                f(&mut [c.as_mut_slice()], &mut [Vec::new()]);
+                c.iter().map(|v| v.to_bits()).collect()
+            })
+            .collect();
+        let together = |mut cols: Vec<Vec<f64>>, blocks: &[std::ops::Range<usize>]| {
+            let mut states = vec![Vec::new(); cols.len()];
+            for rows in blocks {
+                let mut slices: Vec<&mut [f64]> = cols
+                    .iter_mut()
+                    .map(|c| {
+                        let end = rows.end.min(c.len());
+                        &mut c[rows.start.min(end)..end]
+                    })
+                    .collect();
+                f(&mut slices, &mut states);
+            }
+            cols.iter()
+                .map(|c| c.iter().map(|v| v.to_bits()).collect::<Vec<u64>>())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(together(cols.clone(), &[0..1001]), alone);
+        // in blocks, each resuming from the state the last one left: the same bits
+        let blocks = [0..1, 1..302, 302..303, 303..1001];
+        assert_eq!(together(cols, &blocks), alone);
     }
 
     #[test]
