@@ -1560,7 +1560,8 @@ mod tests {
                 .map(|c| c.iter().map(|v| v.to_bits()).collect::<Vec<u64>>())
                 .collect::<Vec<_>>()
         };
-        assert_eq!(together(cols.clone(), &[0..1001]), alone);
+        let whole = 0..1001;
+        assert_eq!(together(cols.clone(), std::slice::from_ref(&whole)), alone);
         // in blocks, each resuming from the state the last one left: the same bits
         let blocks = [0..1, 1..302, 302..303, 303..1001];
         assert_eq!(together(cols, &blocks), alone);
