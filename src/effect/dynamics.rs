@@ -524,6 +524,33 @@ fn resonate(p: &[f64; 4], gm: &[f64; 2], out: &mut [f64], x: &mut [f64; 2]) {
     *x = [x0, x1];
 }
 
+/// The signals of `cols` `N` at a time from the first, while each group's signals have one
+/// length: `kernel` filters a group from its states (`K` values a signal; at rest when a
+/// state is empty) and leaves them updated. Returns how many signals it filtered (the lane
+/// kernels' shared loop).
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+fn in_groups<const N: usize, const K: usize>(
+    cols: &mut [&mut [f64]],
+    states: &mut [FilterState],
+    mut kernel: impl FnMut(&mut [&mut [f64]], &mut [[f64; K]; N]),
+) -> usize {
+    let mut done = 0;
+    for (group, st) in cols.chunks_exact_mut(N).zip(states.chunks_exact_mut(N)) {
+        let n = group[0].len();
+        if group.iter().any(|c| c.len() != n) {
+            break;
+        }
+        let mut x: [[f64; K]; N] =
+            std::array::from_fn(|l| st[l].as_slice().try_into().unwrap_or([0.0; K]));
+        kernel(group, &mut x);
+        for (s, x) in st.iter_mut().zip(x) {
+            *s = x.to_vec();
+        }
+        done += N;
+    }
+    done
+}
+
 /// [`resonate`] on the signals of `cols` eight at a time in the lanes of AVX-512 registers,
 /// where the processor has it: each block of eight samples of eight signals is transposed in
 /// the registers, run through the recursion (lane `l` doing signal `l`'s arithmetic in
@@ -538,22 +565,8 @@ fn eight_lanes(
 ) -> usize {
     #[cfg(target_arch = "x86_64")]
     if crate::numeric::simd::uses_avx512() {
-        let mut done = 0;
-        for (group, st) in cols.chunks_exact_mut(8).zip(states.chunks_exact_mut(8)) {
-            let n = group[0].len();
-            if group.iter().any(|c| c.len() != n) {
-                break;
-            }
-            let mut x: [[f64; 2]; 8] = std::array::from_fn(|l| state_of(&st[l]));
-            // SAFETY: the processor supports AVX-512F (checked above); eight signals of `n`
-            // samples.
-            unsafe { resonate_8(p, gm, group, &mut x) };
-            for (s, x) in st.iter_mut().zip(x) {
-                *s = x.to_vec();
-            }
-            done += 8;
-        }
-        return done;
+        // SAFETY: the processor supports AVX-512F (checked above); eight signals of one length
+        return in_groups::<8, 2>(cols, states, |g, x| unsafe { resonate_8(p, gm, g, x) });
     }
     let _ = (p, gm, cols, states);
     0
@@ -660,21 +673,8 @@ fn four_lanes(
 ) -> usize {
     #[cfg(target_arch = "x86_64")]
     if crate::numeric::simd::uses_avx2() {
-        let mut done = 0;
-        for (group, st) in cols.chunks_exact_mut(4).zip(states.chunks_exact_mut(4)) {
-            let n = group[0].len();
-            if group.iter().any(|c| c.len() != n) {
-                break;
-            }
-            let mut x: [[f64; 2]; 4] = std::array::from_fn(|l| state_of(&st[l]));
-            // SAFETY: the processor supports AVX2 (checked above); four signals of `n` samples.
-            unsafe { resonate_4(p, gm, group, &mut x) };
-            for (s, x) in st.iter_mut().zip(x) {
-                *s = x.to_vec();
-            }
-            done += 4;
-        }
-        return done;
+        // SAFETY: the processor supports AVX2 (checked above); four signals of one length
+        return in_groups::<4, 2>(cols, states, |g, x| unsafe { resonate_4(p, gm, g, x) });
     }
     let _ = (p, gm, cols, states);
     0
@@ -970,24 +970,8 @@ fn two_modes_four_lanes(
 ) -> usize {
     #[cfg(target_arch = "x86_64")]
     if crate::numeric::simd::uses_avx2() {
-        let mut done = 0;
-        for (group, st) in cols.chunks_exact_mut(4).zip(states.chunks_exact_mut(4)) {
-            let n = group[0].len();
-            if group.iter().any(|c| c.len() != n) {
-                break;
-            }
-            let mut x: [[f64; 4]; 4] = std::array::from_fn(|l| match st[l].as_slice() {
-                [x0, x1, z0, z1] => [*x0, *x1, *z0, *z1],
-                _ => [0.0; 4],
-            });
-            // SAFETY: the processor supports AVX2 (checked above); four signals of `n` samples.
-            unsafe { two_modes_4(a, b, group, &mut x) };
-            for (s, x) in st.iter_mut().zip(x) {
-                *s = x.to_vec();
-            }
-            done += 4;
-        }
-        return done;
+        // SAFETY: the processor supports AVX2 (checked above); four signals of one length
+        return in_groups::<4, 4>(cols, states, |g, x| unsafe { two_modes_4(a, b, g, x) });
     }
     let _ = (a, b, cols, states);
     0
