@@ -689,31 +689,14 @@ unsafe fn resonate_4(p: &[f64; 4], gm: &[f64; 2], cols: &mut [&mut [f64]], x: &m
     let n = cols[0].len();
     assert!(cols.len() == 4 && cols.iter().all(|c| c.len() == n));
     let full = n - n % 4;
-    let [p0, p1, p2, p3] = [
-        _mm256_set1_pd(p[0]),
-        _mm256_set1_pd(p[1]),
-        _mm256_set1_pd(p[2]),
-        _mm256_set1_pd(p[3]),
-    ];
-    let [g0, g1] = [_mm256_set1_pd(gm[0]), _mm256_set1_pd(gm[1])];
+    let [p0, p1, p2, p3] = p.map(|v| _mm256_set1_pd(v));
+    let [g0, g1] = gm.map(|v| _mm256_set1_pd(v));
     let mut x0 = _mm256_set_pd(x[3][0], x[2][0], x[1][0], x[0][0]);
     let mut x1 = _mm256_set_pd(x[3][1], x[2][1], x[1][1], x[0][1]);
-    let ptrs: [*mut f64; 4] = [
-        cols[0].as_mut_ptr(),
-        cols[1].as_mut_ptr(),
-        cols[2].as_mut_ptr(),
-        cols[3].as_mut_ptr(),
-    ];
+    let ptrs: [*mut f64; 4] = std::array::from_fn(|l| cols[l].as_mut_ptr());
     for s in (0..full).step_by(4) {
         // SAFETY: s + 4 <= full <= n, every signal's length
-        let w = unsafe {
-            transpose_4x4([
-                _mm256_loadu_pd(ptrs[0].add(s)),
-                _mm256_loadu_pd(ptrs[1].add(s)),
-                _mm256_loadu_pd(ptrs[2].add(s)),
-                _mm256_loadu_pd(ptrs[3].add(s)),
-            ])
-        };
+        let w = unsafe { load_transposed_4(&ptrs, s) };
         let mut o = [_mm256_setzero_pd(); 4];
         for (k, wk) in w.iter().enumerate() {
             o[k] = x0;
@@ -728,11 +711,8 @@ unsafe fn resonate_4(p: &[f64; 4], gm: &[f64; 2], cols: &mut [&mut [f64]], x: &m
             x0 = n0;
             x1 = n1;
         }
-        let o = transpose_4x4(o);
-        for (l, v) in o.into_iter().enumerate() {
-            // SAFETY: as the loads
-            unsafe { _mm256_storeu_pd(ptrs[l].add(s), v) };
-        }
+        // SAFETY: as the loads
+        unsafe { store_transposed_4(&ptrs, s, o) };
     }
     let (mut a, mut b) = ([0.0f64; 4], [0.0f64; 4]);
     // SAFETY: four doubles each
@@ -743,6 +723,34 @@ unsafe fn resonate_4(p: &[f64; 4], gm: &[f64; 2], cols: &mut [&mut [f64]], x: &m
     for (l, c) in cols.iter_mut().enumerate() {
         x[l] = [a[l], b[l]];
         resonate(p, gm, &mut c[full..], &mut x[l]);
+    }
+}
+
+/// Samples `s..s + 4` of four signals (at `ptrs`), transposed: register `k` holds sample
+/// `s + k`, lane `l` signal `l`'s.
+///
+/// # Safety
+/// The processor has AVX2 and each signal holds at least `s + 4` samples.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn load_transposed_4(ptrs: &[*mut f64; 4], s: usize) -> [std::arch::x86_64::__m256d; 4] {
+    use std::arch::x86_64::_mm256_loadu_pd;
+    // SAFETY: as the caller promises
+    transpose_4x4(ptrs.map(|p| unsafe { _mm256_loadu_pd(p.add(s)) }))
+}
+
+/// The inverse of [`load_transposed_4`]: register `k`'s lanes stored as sample `s + k` of the
+/// four signals.
+///
+/// # Safety
+/// As [`load_transposed_4`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn store_transposed_4(ptrs: &[*mut f64; 4], s: usize, o: [std::arch::x86_64::__m256d; 4]) {
+    use std::arch::x86_64::_mm256_storeu_pd;
+    for (p, v) in ptrs.iter().zip(transpose_4x4(o)) {
+        // SAFETY: as the caller promises
+        unsafe { _mm256_storeu_pd(p.add(s), v) };
     }
 }
 
@@ -1009,23 +1017,11 @@ unsafe fn two_modes_4(a: &Discrete, b: &Discrete, cols: &mut [&mut [f64]], x: &m
     );
     let lanes = |i: usize| _mm256_set_pd(x[3][i], x[2][i], x[1][i], x[0][i]);
     let (mut x0, mut x1, mut z0, mut z1) = (lanes(0), lanes(1), lanes(2), lanes(3));
-    let ptrs: [*mut f64; 4] = [
-        cols[0].as_mut_ptr(),
-        cols[1].as_mut_ptr(),
-        cols[2].as_mut_ptr(),
-        cols[3].as_mut_ptr(),
-    ];
+    let ptrs: [*mut f64; 4] = std::array::from_fn(|l| cols[l].as_mut_ptr());
     let (add, mul) = (_mm256_add_pd, _mm256_mul_pd);
     for s in (0..full).step_by(4) {
         // SAFETY: s + 4 <= full <= n, every signal's length
-        let w = unsafe {
-            transpose_4x4([
-                _mm256_loadu_pd(ptrs[0].add(s)),
-                _mm256_loadu_pd(ptrs[1].add(s)),
-                _mm256_loadu_pd(ptrs[2].add(s)),
-                _mm256_loadu_pd(ptrs[3].add(s)),
-            ])
-        };
+        let w = unsafe { load_transposed_4(&ptrs, s) };
         let mut o = [_mm256_setzero_pd(); 4];
         for (k, &wk) in w.iter().enumerate() {
             // (x1 + d_a w + x3) + d_b w, as `two_modes`
@@ -1036,11 +1032,8 @@ unsafe fn two_modes_4(a: &Discrete, b: &Discrete, cols: &mut [&mut [f64]], x: &m
             let m1 = add(add(mul(pb[2], z0), mul(pb[3], z1)), mul(gb[1], wk));
             (x0, x1, z0, z1) = (n0, n1, m0, m1);
         }
-        let o = transpose_4x4(o);
-        for (l, v) in o.into_iter().enumerate() {
-            // SAFETY: as the loads
-            unsafe { _mm256_storeu_pd(ptrs[l].add(s), v) };
-        }
+        // SAFETY: as the loads
+        unsafe { store_transposed_4(&ptrs, s, o) };
     }
     let mut st = [[0.0f64; 4]; 4];
     for (i, v) in [x0, x1, z0, z1].into_iter().enumerate() {

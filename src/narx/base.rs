@@ -243,7 +243,12 @@ fn refit_picked(
 /// Whether a list's hysteresis is the Bouc-Wen operator alone (one coefficient a path beside
 /// its gain: nothing for a ridge to shrink).
 fn bouc_wen_only(list: &str) -> bool {
-    list.split(',').any(|e| e == "bouc-wen")
+    names(list, "bouc-wen")
+}
+
+/// Whether an effect list (`hysteresis,modes`, say) names `effect`.
+fn names(list: &str, effect: &str) -> bool {
+    list.split(',').any(|e| e == effect)
 }
 
 /// The base of a record that supports no hysteresis: linear dynamics.
@@ -432,7 +437,7 @@ fn list_config(train: &IoRecord, list: &str, n_fit: usize) -> Option<GreyBoxConf
     // the base's lists and ridges are chosen by validation; the second stage is not in them
     cfg.options.output_map = false;
     cfg.options.parsimonious_creep = false;
-    if !list.split(',').any(|e| e == "modes") {
+    if !names(list, "modes") {
         cfg.options.starts_rows = BASE_STARTS_ROWS;
     }
     Some(cfg)
