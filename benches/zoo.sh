@@ -16,7 +16,7 @@ dir="$work/zoo_$seed"
 t0=$(date +%s.%N)
 "$bin" zoo --count "$count" --seed "$seed" --out "$dir" --force >/dev/null 2>&1
 t1=$(date +%s.%N)
-"$bin" zoo score "$dir" --quiet
+"$bin" zoo score "$dir" --quiet    # records side by side (--one-at-a-time: per-record times)
 t2=$(date +%s.%N)
 printf 'zoo of %s members (seed %s): made in %.1f s, scored in %.1f s (%s threads)\n' \
   "$count" "$seed" "$(echo "$t1 - $t0" | bc -l)" "$(echo "$t2 - $t1" | bc -l)" "$(nproc)"

@@ -300,6 +300,18 @@ fn a_small_zoo_is_scored_against_the_linear_baseline() {
         }
     }
     assert_eq!(timeless(&merged), timeless(&v));
+    // one record at a time (each fit with every thread): the same scores as side by side
+    let o = hystbench(&[
+        "zoo",
+        "score",
+        s(&z),
+        "--one-at-a-time",
+        "--json",
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let alone: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(timeless(&alone), timeless(&v));
 }
 
 /// `zoo loop`: on a small development zoo (seed 7, long and short 1-DoF members, first 3,000

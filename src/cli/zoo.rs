@@ -87,6 +87,11 @@ pub struct ScoreArgs {
     /// zoo, as one unsharded `zoo score` writes it.
     #[arg(long)]
     pub merge: bool,
+    /// Score one record at a time, each fit with every thread, so that each record's time is
+    /// that of a lone `identify` (by default records are scored side by side, sharing the
+    /// threads: the whole zoo sooner, the same scores).
+    #[arg(long, conflicts_with = "merge")]
+    pub one_at_a_time: bool,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -245,11 +250,16 @@ fn score(a: ScoreArgs) -> anyhow::Result<()> {
         Some(sh) => (0..index.members.len()).filter(|&i| sh.holds(i)).count(),
         None => index.members.len(),
     };
-    let mut k = 0;
+    let k = std::sync::atomic::AtomicUsize::new(0);
     let progress = crate::cli::progress::Progress::bar(n as u64, "members", a.quiet);
     let take = |i: usize| a.shard.is_none_or(|sh| sh.holds(i));
-    let records = zoo::score_members(&a.dir, &take, &mut |r| {
-        k += 1;
+    let schedule = if a.one_at_a_time {
+        zoo::Schedule::OneAtATime
+    } else {
+        zoo::Schedule::SideBySide
+    };
+    let records = zoo::score_members(&a.dir, &take, schedule, &|r| {
+        let k = k.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         progress.inc();
         if !a.quiet {
             let cells: Vec<String> = r

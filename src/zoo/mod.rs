@@ -24,7 +24,7 @@ pub mod score;
 
 pub use draw::{member, Class, Member};
 pub use hidden::{score_loop, LoopOptions, LoopScore};
-pub use score::{score, score_members, RecordScore, ZooScore};
+pub use score::{score, score_members, RecordScore, Schedule, ZooScore};
 
 use crate::data::{format_csv, JsonFileError};
 use crate::plant::PlantError;
