@@ -860,7 +860,16 @@ impl NarxConfig {
                 Some(a) if a.len() == n => (n_fit..n).map(|k| (sim[o][k] - a[k]).abs()).collect(),
                 _ => vec![0.0; r.len()],
             };
-            m.outputs[o].band = Band::calibrate(&r, &spread, BAND_LEVEL);
+            let band = Band::calibrate(&r, &spread, BAND_LEVEL);
+            // on a short record, never narrower than its cross-validated errors over every
+            // block (`Band::with_floor`)
+            m.outputs[o].band = match band {
+                Some(b) if short => {
+                    let every: Vec<f64> = (0..n).map(|k| y[k] - sim[o][k]).collect();
+                    Some(b.with_floor(&every))
+                }
+                b => b,
+            };
             m.outputs[o].band_members.clear();
         }
         let lists: Vec<&str> = cands.iter().map(|c| c.list).collect();
