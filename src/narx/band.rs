@@ -45,6 +45,15 @@ fn is_zero(v: &f64) -> bool {
     *v == 0.0
 }
 
+/// The split-conformal quantile of `scores` (not empty) at `level`: the ceil((n + 1) level)-th
+/// smallest of n (the largest when that passes n).
+fn conformal_quantile(mut scores: Vec<f64>, level: f64) -> f64 {
+    let n = scores.len();
+    scores.sort_by(f64::total_cmp);
+    let k = (((n + 1) as f64 * level).ceil() as usize).clamp(1, n);
+    scores[k - 1]
+}
+
 impl Band {
     /// Calibrates from validation residuals and the ensemble's spread at the same samples
     /// (physical units). `None` without residuals, or when they are all zero or not finite.
@@ -57,16 +66,14 @@ impl Band {
         if !(rms.is_finite() && rms > 0.0 && spreads.iter().all(|s| s.is_finite())) {
             return None;
         }
-        let mut scores: Vec<f64> = residuals
+        let scores: Vec<f64> = residuals
             .iter()
             .zip(spreads)
             .map(|(r, s)| r.abs() / (s + rms))
             .collect();
-        scores.sort_by(f64::total_cmp);
-        let k = (((n + 1) as f64 * level).ceil() as usize).clamp(1, n);
         Some(Band {
             level,
-            quantile: scores[k - 1],
+            quantile: conformal_quantile(scores, level),
             rms,
             samples: n,
             floor: 0.0,
@@ -82,14 +89,10 @@ impl Band {
     /// jackknife+", Ann. Statist. 49(1):486-507, 2021, with a constant width). Residuals that
     /// are not all finite leave the band as it is.
     pub fn with_floor(mut self, residuals: &[f64]) -> Band {
-        let n = residuals.len();
-        if n == 0 || !residuals.iter().all(|r| r.is_finite()) {
+        if residuals.is_empty() || !residuals.iter().all(|r| r.is_finite()) {
             return self;
         }
-        let mut a: Vec<f64> = residuals.iter().map(|r| r.abs()).collect();
-        a.sort_by(f64::total_cmp);
-        let k = (((n + 1) as f64 * self.level).ceil() as usize).clamp(1, n);
-        self.floor = a[k - 1];
+        self.floor = conformal_quantile(residuals.iter().map(|r| r.abs()).collect(), self.level);
         self
     }
 

@@ -252,22 +252,15 @@ pub fn score_members(
         }
         r
     };
-    let scored: Vec<Result<RecordScore, ZooError>> = match schedule {
-        Schedule::OneAtATime => {
-            let mut v = Vec::with_capacity(members.len());
-            for e in &members {
-                let r = one(e);
-                let failed = r.is_err();
-                v.push(r);
-                if failed {
-                    break;
-                }
-            }
-            v
+    match schedule {
+        // (stops at the first error)
+        Schedule::OneAtATime => members.iter().map(one).collect(),
+        Schedule::SideBySide => {
+            let scored: Vec<Result<RecordScore, ZooError>> =
+                members.par_iter().with_max_len(1).map(one).collect();
+            scored.into_iter().collect()
         }
-        Schedule::SideBySide => members.par_iter().with_max_len(1).map(one).collect(),
-    };
-    scored.into_iter().collect()
+    }
 }
 
 impl ZooScore {
