@@ -254,6 +254,11 @@ fn run_with(
                 e.rmse_fr_test.map_or("-".into(), |v| format!("{v:.4e}")),
             );
         }
+        for e in &eval {
+            if let Some(d) = &e.base_departure_test {
+                println!("{} on the test record: {d}", e.name);
+            }
+        }
         for (e, o) in eval.iter().zip(&model.outputs) {
             if !o.ensemble.is_empty() {
                 println!(

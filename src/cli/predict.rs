@@ -70,6 +70,11 @@ pub fn run(args: PredictArgs) -> anyhow::Result<()> {
             );
         }
     }
+    for p in &preds {
+        if let Some(d) = &p.base_departure {
+            eprintln!("warning: {}: `{}`: {d}", args.data.display(), p.name);
+        }
+    }
     let (mut names, mut cols) = rec.to_columns();
     for p in preds {
         let band = p.half_width.as_ref().map(|h| {

@@ -38,12 +38,13 @@
 
 use super::band::{Band, BAND_LEVEL};
 use super::config::{NarxConfig, Protocol};
+use super::consensus::{departures, replacement, Alternative, Departure, Verdict};
 use super::fit::PROBE_TAIL;
 use super::model::{FittedNarx, Mode, OutputModel};
 use super::NarxError;
 use crate::data::IoRecord;
 use crate::graybox::{FittedGreyBox, GreyBoxConfig, CV_FOLDS, RIDGES};
-use crate::metrics::{lowest_geometric_mean_error, significantly_lower_error};
+use crate::metrics::{lowest_geometric_mean_error, significantly_lower_error, MEAN_ERROR_RATIO};
 use crate::plant::{Plant, PlantSpec};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -294,6 +295,10 @@ pub struct BaseChoice {
     /// band (as the network does for an output on the grey-box alone).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub network_alone: Option<OutputModel>,
+    /// On a short record's output on the grey-box alone: its rivals, in the cross-validation's
+    /// order of preference, that its predictions are checked against ([`super::consensus`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub alternatives: Vec<Alternative>,
 }
 
 /// The grey-box base of a fitted model and how each output uses it.
@@ -345,26 +350,96 @@ impl GreyBoxBase {
         let Some(plant) = self.plant(&rec.path)? else {
             return Ok(None);
         };
-        let skip = history.map_or(0, IoRecord::len);
-        let inputs: Vec<Vec<f64>> = rec
-            .inputs
-            .iter()
-            .enumerate()
-            .map(|(j, s)| {
-                let mut v = history.map_or_else(Vec::new, |h| h.inputs[j].values.clone());
-                v.extend_from_slice(&s.values);
-                v
-            })
-            .collect();
-        let refs: Vec<&[f64]> = inputs.iter().map(Vec::as_slice).collect();
-        let y = plant
-            .simulate(&refs, rec.ts)
-            .map_err(|e| NarxError::Damaged {
-                path: rec.path.clone(),
-                why: format!("its grey-box base cannot be simulated: {e}"),
-            })?;
-        Ok(Some(y.into_iter().map(|v| v[skip..].to_vec()).collect()))
+        run(&plant, history, rec).map(Some)
     }
+
+    /// The consensus check of output `o` ([`super::consensus`]), whose base predicted `chosen`
+    /// over `rec` (after `history`), in units of `std` (the training output's): `None` when it
+    /// has no rivals or stays within their consensus.
+    pub fn consensus(
+        &self,
+        o: usize,
+        chosen: &[f64],
+        std: f64,
+        history: Option<&IoRecord>,
+        rec: &IoRecord,
+    ) -> Result<Option<Verdict>, NarxError> {
+        let (Some(spec), Some(choice)) = (&self.plant, self.outputs.get(o)) else {
+            return Ok(None);
+        };
+        if choice.alternatives.is_empty() {
+            return Ok(None);
+        }
+        let runs: Vec<Option<Vec<f64>>> = choice
+            .alternatives
+            .iter()
+            .map(|a| {
+                let mut s = spec.clone();
+                s.outputs[o] = a.output.clone();
+                let plant = s.check(&rec.path).map_err(|e| NarxError::Damaged {
+                    path: rec.path.clone(),
+                    why: format!("the grey-box rival `{}` of output {o}: {e}", a.name()),
+                })?;
+                // (a rival that cannot be run takes no part)
+                Ok(run(&plant, history, rec).ok().map(|mut y| y.swap_remove(o)))
+            })
+            .collect::<Result<_, NarxError>>()?;
+        let all: Vec<Option<&[f64]>> = std::iter::once(Some(chosen))
+            .chain(runs.iter().map(Option::as_deref))
+            .collect();
+        let d = departures(&all, std);
+        if std::env::var_os("HYSTBENCH_TRACE").is_some() {
+            eprintln!(
+                "consensus {}: {} samples, departure {:?}, rivals {:?}",
+                choice.name,
+                chosen.len(),
+                d[0],
+                &d[1..]
+            );
+        }
+        let Some(by) = replacement(&d) else {
+            return Ok(None);
+        };
+        let departure = Departure {
+            chosen: choice.effects.clone(),
+            departure: d[0].unwrap_or(f64::NAN),
+            replaced_by: by.map(|i| choice.alternatives[i - 1].name()),
+            replacement_departure: by.and_then(|i| d[i]),
+        };
+        let instead = by.and_then(|i| {
+            let values = runs[i - 1].clone()?;
+            Some((values, choice.alternatives[i - 1].band.clone()))
+        });
+        Ok(Some(Verdict { departure, instead }))
+    }
+}
+
+/// A plant's outputs over `rec`, run from rest through `history` first when `rec` continues
+/// it (the samples of `rec` only).
+fn run(
+    plant: &Plant,
+    history: Option<&IoRecord>,
+    rec: &IoRecord,
+) -> Result<Vec<Vec<f64>>, NarxError> {
+    let skip = history.map_or(0, IoRecord::len);
+    let inputs: Vec<Vec<f64>> = rec
+        .inputs
+        .iter()
+        .enumerate()
+        .map(|(j, s)| {
+            let mut v = history.map_or_else(Vec::new, |h| h.inputs[j].values.clone());
+            v.extend_from_slice(&s.values);
+            v
+        })
+        .collect();
+    let refs: Vec<&[f64]> = inputs.iter().map(Vec::as_slice).collect();
+    let y = plant
+        .simulate(&refs, rec.ts)
+        .map_err(|e| NarxError::Damaged {
+            path: rec.path.clone(),
+            why: format!("its grey-box base cannot be simulated: {e}"),
+        })?;
+    Ok(y.into_iter().map(|v| v[skip..].to_vec()).collect())
 }
 
 /// Samples per parameter the base asks of the record: half the grey-box fit's default, since
@@ -663,20 +738,78 @@ fn pick(
         .iter()
         .map(|c| errors(y, &c.sim[o], judged.clone(), std))
         .collect();
-    // the best of a class of candidates (an index into `cands`)
+    let challengers: Vec<bool> = cands.iter().map(|c| c.envelope_split).collect();
+    (pick_among(&errs, &challengers), errs)
+}
+
+/// [`pick`] on the candidates' errors `errs` (`challengers`: those with generalised plays).
+fn pick_among(errs: &[Option<Vec<f64>>], challengers: &[bool]) -> usize {
+    // the best of a class of candidates (an index into `errs`)
     let best_of = |challenger: bool| {
-        let at: Vec<usize> = (0..cands.len())
-            .filter(|&i| cands[i].envelope_split == challenger)
+        let at: Vec<usize> = (0..errs.len())
+            .filter(|&i| challengers[i] == challenger)
             .collect();
         let e: Vec<Option<Vec<f64>>> = at.iter().map(|&i| errs[i].clone()).collect();
         (!at.is_empty()).then(|| at[lowest_geometric_mean_error(&e)])
     };
-    let pick = match (best_of(false), best_of(true)) {
+    match (best_of(false), best_of(true)) {
         (Some(p), Some(c)) if richer_wins(&errs[c], &errs[p]) => c,
         (Some(p), _) => p,
         (None, c) => c.unwrap_or(0),
+    }
+}
+
+/// The candidates in [`pick`]'s order of preference, `first` (the pick) first: each next one
+/// is the pick among those left; the candidates without errors (diverged) are left out.
+fn preference(errs: &[Option<Vec<f64>>], challengers: &[bool], first: usize) -> Vec<usize> {
+    let mut left = errs.to_vec();
+    let mut order = vec![first];
+    left[first] = None;
+    while left.iter().any(Option::is_some) {
+        let next = pick_among(&left, challengers);
+        if left[next].is_none() {
+            // (every candidate of the class it fell back on is gone: the first left)
+            let Some(i) = left.iter().position(Option::is_some) else {
+                break;
+            };
+            order.push(i);
+            left[i] = None;
+            continue;
+        }
+        order.push(next);
+        left[next] = None;
+    }
+    order
+}
+
+/// The band of an output on the grey-box alone, from its free run `sim` over the training
+/// record `y`: calibrated on the held-out samples `n_fit..` by its residuals there, normalised
+/// by its disagreement with the network's free run `network` (wider where the two part, as
+/// outside the training region; `Band` with the spread |g - network|); on a short record
+/// never narrower than its cross-validated errors over every block (`Band::with_floor`).
+fn base_band(
+    y: &[f64],
+    sim: &[f64],
+    network: &Option<Vec<f64>>,
+    n_fit: usize,
+    short: bool,
+) -> Option<Band> {
+    let n = y.len();
+    if sim.len() < n {
+        return None;
+    }
+    let r: Vec<f64> = (n_fit..n).map(|k| y[k] - sim[k]).collect();
+    let spread: Vec<f64> = match network {
+        Some(a) if a.len() == n => (n_fit..n).map(|k| (sim[k] - a[k]).abs()).collect(),
+        _ => vec![0.0; r.len()],
     };
-    (pick, errs)
+    match Band::calibrate(&r, &spread, BAND_LEVEL) {
+        Some(b) if short => {
+            let every: Vec<f64> = (0..n).map(|k| y[k] - sim[k]).collect();
+            Some(b.with_floor(&every))
+        }
+        b => b,
+    }
 }
 
 /// A short record's base candidates, cross-validated before the networks are trained.
@@ -759,6 +892,7 @@ impl NarxConfig {
         // per output, the candidate with the lowest held-out errors on a log scale, judged
         // on every out-of-block sample of a short record, else on the validation part
         let judged = if short { 0..n } else { n_fit..n };
+        let mut judged_errors: Vec<Vec<Option<Vec<f64>>>> = Vec::new();
         let (mut picks, judged_mse): (Vec<usize>, Vec<Option<f64>>) = m
             .outputs
             .iter()
@@ -771,7 +905,9 @@ impl NarxConfig {
                     let tail = |p: &[f64]| errors(y, p, n_fit..n, std);
                     trace_choice(&om.name, o, &cands, &errs, pick, tail, &networks[o]);
                 }
-                (pick, mse(&errs[pick]))
+                let judged = mse(&errs[pick]);
+                judged_errors.push(errs);
+                (pick, judged)
             })
             .unzip();
         if !short {
@@ -822,6 +958,7 @@ impl NarxConfig {
                 },
                 base_band: None,
                 network_alone: None,
+                alternatives: Vec::new(),
             });
             base_errors.push(be);
         }
@@ -850,27 +987,60 @@ impl NarxConfig {
             });
             return Ok(m);
         }
-        // the band of the grey-box alone: its held-out residuals, normalised by its
-        // disagreement with the network (wider where the two part, as outside the training
-        // region; `Band` with the spread |g - network|)
         for &o in &chosen {
             let y = &train.outputs[o].values;
-            let r: Vec<f64> = (n_fit..n).map(|k| y[k] - sim[o][k]).collect();
-            let spread: Vec<f64> = match &networks[o] {
-                Some(a) if a.len() == n => (n_fit..n).map(|k| (sim[o][k] - a[k]).abs()).collect(),
-                _ => vec![0.0; r.len()],
-            };
-            let band = Band::calibrate(&r, &spread, BAND_LEVEL);
-            // on a short record, never narrower than its cross-validated errors over every
-            // block (`Band::with_floor`)
-            m.outputs[o].band = match band {
-                Some(b) if short => {
-                    let every: Vec<f64> = (0..n).map(|k| y[k] - sim[o][k]).collect();
-                    Some(b.with_floor(&every))
-                }
-                b => b,
-            };
+            m.outputs[o].band = base_band(y, &sim[o], &networks[o], n_fit, short);
             m.outputs[o].band_members.clear();
+            // on a short record, the rivals its predictions are checked against
+            // ([`super::consensus`]): the other candidates that the choice found comparable
+            // (cross-validated MSE within `MEAN_ERROR_RATIO` of the lowest), each one's fit
+            // without the last block, in the order of preference
+            if short {
+                let challengers: Vec<bool> = cands.iter().map(|c| c.envelope_split).collect();
+                let errs = &judged_errors[o];
+                let lowest = errs
+                    .iter()
+                    .filter_map(mse)
+                    .fold(f64::INFINITY, f64::min);
+                let order: Vec<usize> = preference(errs, &challengers, picks[o])
+                    .into_iter()
+                    .enumerate()
+                    .filter(|&(k, i)| {
+                        k == 0 || mse(&errs[i]).is_some_and(|m| m <= MEAN_ERROR_RATIO * lowest)
+                    })
+                    .map(|(_, i)| i)
+                    .collect();
+                if std::env::var_os("HYSTBENCH_TRACE").is_some() {
+                    let runs: Vec<Option<&[f64]>> =
+                        order.iter().map(|&i| Some(&cands[i].sim[o][..])).collect();
+                    let d = departures(&runs, m.outputs[o].scaling.std);
+                    eprintln!(
+                        "consensus {} cross-validated: departure {:?}, rivals {:?}",
+                        m.outputs[o].name,
+                        d[0],
+                        &d[1..]
+                    );
+                }
+                let c = &cands[picks[o]];
+                let own_band = base_band(y, &c.sim[o], &networks[o], n_fit, short);
+                choices[o].alternatives = order[1..]
+                    .iter()
+                    .map(|&i| Alternative {
+                        effects: cands[i].effects(),
+                        ridge: cands[i].model.config.options.ridge,
+                        fold: None,
+                        output: cands[i].model.plant.spec.outputs[o].clone(),
+                        band: base_band(y, &cands[i].sim[o], &networks[o], n_fit, short),
+                    })
+                    .chain(c.folds.iter().enumerate().map(|(k, f)| Alternative {
+                        effects: c.effects(),
+                        ridge: c.model.config.options.ridge,
+                        fold: Some(k),
+                        output: f.plant.spec.outputs[o].clone(),
+                        band: own_band.clone(),
+                    }))
+                    .collect();
+            }
         }
         let lists: Vec<&str> = cands.iter().map(|c| c.list).collect();
         let (mut models, folds): (Vec<FittedGreyBox>, Vec<Vec<FittedGreyBox>>) =

@@ -207,6 +207,9 @@ pub struct OutputPrediction {
     /// Half-width of the prediction band at each sample (physical units; a free run of a model
     /// with a calibrated band, [`super::band`]), else `None`.
     pub half_width: Option<Vec<f64>>,
+    /// On an output on the grey-box alone that departed from its rivals' consensus on this
+    /// record ([`super::consensus`]): by how much, and which rival predicted instead.
+    pub base_departure: Option<super::consensus::Departure>,
 }
 
 impl OutputPrediction {
@@ -335,7 +338,7 @@ impl FittedNarx {
             }
         }
         self.check_record(rec)?;
-        let Some(g) = base.simulate(history, rec)? else {
+        let Some(mut g) = base.simulate(history, rec)? else {
             return self.predict_sampled(rec, mode);
         };
         // the networks see the residual of the outputs that have a base
@@ -409,6 +412,18 @@ impl FittedNarx {
                     }
                 }
                 super::base::BaseUse::Base => {
+                    // a base that leaves its rivals' consensus on this record gives way to the
+                    // first rival within it, with that rival's band
+                    let std = self.outputs[o].scaling.std;
+                    let mut band = self.outputs[o].band.as_ref();
+                    let consensus = base.consensus(o, &g[o], std, history, rec)?;
+                    if let Some(v) = &consensus {
+                        if let Some((values, b)) = &v.instead {
+                            g[o].clone_from(values);
+                            band = b.as_ref();
+                        }
+                        p.base_departure = Some(v.departure.clone());
+                    }
                     // the output's network ran on the measured output: its free run is the
                     // second opinion whose disagreement with the base widens the band
                     let net = std::mem::replace(&mut p.values, g[o].clone());
@@ -419,7 +434,7 @@ impl FittedNarx {
                     };
                     p.diverged_at = None;
                     p.diverged_members.clear();
-                    p.half_width = match (mode, &self.outputs[o].band) {
+                    p.half_width = match (mode, band) {
                         (Mode::FreeRun, Some(b)) => Some(
                             (0..g[o].len())
                                 .map(|k| {
@@ -581,6 +596,7 @@ impl FittedNarx {
                 diverged_at,
                 diverged_members,
                 half_width,
+                base_departure: None,
             });
         }
         Ok(out)
@@ -774,6 +790,10 @@ pub struct OutputEvaluation {
     /// Ensemble members whose test free run diverged (left out of the combination).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub diverged_members_test: Vec<usize>,
+    /// Where the output's grey-box base departed from its rivals' consensus on the test
+    /// record ([`super::consensus`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base_departure_test: Option<super::consensus::Departure>,
 }
 
 impl OutputEvaluation {
@@ -795,6 +815,12 @@ impl OutputEvaluation {
             m.insert(
                 "ensemble_members_diverged_test".into(),
                 self.diverged_members_test.clone().into(),
+            );
+        }
+        if let Some(d) = &self.base_departure_test {
+            m.insert(
+                "base_departure".into(),
+                serde_json::to_value(d).unwrap_or_default(),
             );
         }
         serde_json::Value::Object(m)
@@ -889,6 +915,7 @@ impl FittedNarx {
                 diverged_at_train: fr_tr[i].diverged_at,
                 diverged_at_test: fr_te[i].diverged_at,
                 diverged_members_test: fr_te[i].diverged_members.clone(),
+                base_departure_test: fr_te[i].base_departure.clone(),
             });
         }
         Ok(out)
@@ -927,6 +954,7 @@ fn interleave(phases: Vec<&OutputPrediction>, s: usize, n: usize) -> OutputPredi
         diverged_at,
         diverged_members,
         half_width,
+        base_departure: None,
     }
 }
 
