@@ -998,10 +998,7 @@ impl NarxConfig {
             if short {
                 let challengers: Vec<bool> = cands.iter().map(|c| c.envelope_split).collect();
                 let errs = &judged_errors[o];
-                let lowest = errs
-                    .iter()
-                    .filter_map(mse)
-                    .fold(f64::INFINITY, f64::min);
+                let lowest = errs.iter().filter_map(mse).fold(f64::INFINITY, f64::min);
                 let order: Vec<usize> = preference(errs, &challengers, picks[o])
                     .into_iter()
                     .enumerate()

@@ -63,12 +63,14 @@ pub struct Alternative {
 impl Alternative {
     /// Its effects and ridge, for messages.
     pub fn name(&self) -> String {
+        let ridge = if self.ridge == 0.0 {
+            "no ridge".to_string()
+        } else {
+            format!("ridge {:.0e}", self.ridge)
+        };
         match self.fold {
-            Some(k) => format!(
-                "{} (ridge {:.0e}, without block {k})",
-                self.effects, self.ridge
-            ),
-            None => format!("{} (ridge {:.0e})", self.effects, self.ridge),
+            Some(k) => format!("{} ({ridge}, fitted without block {k})", self.effects),
+            None => format!("{} ({ridge})", self.effects),
         }
     }
 }
