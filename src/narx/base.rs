@@ -295,7 +295,7 @@ pub struct BaseChoice {
     /// band (as the network does for an output on the grey-box alone).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub network_alone: Option<OutputModel>,
-    /// On a short record's output on the grey-box alone: its rivals, in the cross-validation's
+    /// On a short record's output on the grey-box alone: its committee, in the cross-validation's
     /// order of preference, that its predictions are checked against ([`super::consensus`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub alternatives: Vec<Alternative>,
@@ -355,7 +355,7 @@ impl GreyBoxBase {
 
     /// The consensus check of output `o` ([`super::consensus`]), whose base predicted `chosen`
     /// over `rec` (after `history`), in units of `std` (the training output's): `None` when it
-    /// has no rivals or stays within their consensus.
+    /// has no committee or stays within its consensus.
     pub fn consensus(
         &self,
         o: usize,
@@ -378,9 +378,12 @@ impl GreyBoxBase {
                 s.outputs[o] = a.output.clone();
                 let plant = s.check(&rec.path).map_err(|e| NarxError::Damaged {
                     path: rec.path.clone(),
-                    why: format!("the grey-box rival `{}` of output {o}: {e}", a.name()),
+                    why: format!(
+                        "the grey-box committee member `{}` of output {o}: {e}",
+                        a.name()
+                    ),
                 })?;
-                // (a rival that cannot be run takes no part)
+                // (a member that cannot be run takes no part)
                 Ok(run(&plant, history, rec).ok().map(|mut y| y.swap_remove(o)))
             })
             .collect::<Result<_, NarxError>>()?;
@@ -390,7 +393,7 @@ impl GreyBoxBase {
         let d = departures(&all, std);
         if std::env::var_os("HYSTBENCH_TRACE").is_some() {
             eprintln!(
-                "consensus {}: {} samples, departure {:?}, rivals {:?}",
+                "consensus {}: {} samples, departure {:?}, committee {:?}",
                 choice.name,
                 chosen.len(),
                 d[0],
@@ -991,7 +994,7 @@ impl NarxConfig {
             let y = &train.outputs[o].values;
             m.outputs[o].band = base_band(y, &sim[o], &networks[o], n_fit, short);
             m.outputs[o].band_members.clear();
-            // on a short record, the rivals its predictions are checked against
+            // on a short record, the committee its predictions are checked against
             // ([`super::consensus`]): the other candidates that the choice found comparable
             // (cross-validated MSE within `MEAN_ERROR_RATIO` of the lowest), each one's fit
             // without the last block, in the order of preference
@@ -1012,7 +1015,7 @@ impl NarxConfig {
                         order.iter().map(|&i| Some(&cands[i].sim[o][..])).collect();
                     let d = departures(&runs, m.outputs[o].scaling.std);
                     eprintln!(
-                        "consensus {} cross-validated: departure {:?}, rivals {:?}",
+                        "consensus {} cross-validated: departure {:?}, other candidates {:?}",
                         m.outputs[o].name,
                         d[0],
                         &d[1..]

@@ -42,7 +42,8 @@ use serde::{Deserialize, Serialize};
 /// output's own variation is no longer a matter of detail.
 pub const CONSENSUS_DEPARTURE: f64 = 1.0;
 
-/// A rival of an output's grey-box base: one output's chain of another candidate.
+/// A member of an output's committee: one output's chain of another candidate, or of the chosen
+/// candidate fitted without one block.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Alternative {
@@ -107,8 +108,8 @@ impl std::fmt::Display for Departure {
     }
 }
 
-/// The consensus check's verdict on an output that departed: by how much, and the rival's
-/// prediction and band that replace the base's (`None`: no rival stays within).
+/// The consensus check's verdict on an output that departed: by how much, and the member's
+/// prediction and band that replace the base's (`None`: no member stays within).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Verdict {
     pub departure: Departure,
@@ -160,9 +161,9 @@ pub fn departures(runs: &[Option<&[f64]>], std: f64) -> Vec<Option<f64>> {
         .collect()
 }
 
-/// Which run predicts, given [`departures`] of the chosen base (first) and its rivals in order
+/// Which run predicts, given [`departures`] of the chosen base (first) and its committee in order
 /// of preference: `None` while the chosen one stays within [`CONSENSUS_DEPARTURE`] (or its
-/// departure is unknown), else `Some` of the first rival within it (`Some(None)`: none is).
+/// departure is unknown), else `Some` of the first member within it (`Some(None)`: none is).
 pub fn replacement(departures: &[Option<f64>]) -> Option<Option<usize>> {
     let within = |d: &Option<f64>| d.is_some_and(|d| d <= CONSENSUS_DEPARTURE);
     match departures.first() {
@@ -202,7 +203,7 @@ mod tests {
         let d = departures(&[Some(&a), Some(&short), Some(&nan), None], 1.0);
         assert_eq!(d, vec![Some(0.0), None, None, None]);
         assert_eq!(replacement(&d), None);
-        // a wild rival is passed over; none within the limit: the base stays, reported
+        // a wild member is passed over; none within the limit: the base stays, reported
         let far = vec![10.0, 11.0];
         let wild = vec![-40.0, 30.0];
         let d = departures(

@@ -207,8 +207,8 @@ pub struct OutputPrediction {
     /// Half-width of the prediction band at each sample (physical units; a free run of a model
     /// with a calibrated band, [`super::band`]), else `None`.
     pub half_width: Option<Vec<f64>>,
-    /// On an output on the grey-box alone that departed from its rivals' consensus on this
-    /// record ([`super::consensus`]): by how much, and which rival predicted instead.
+    /// On an output on the grey-box alone that departed from its committee's consensus on this
+    /// record ([`super::consensus`]): by how much, and which member predicted instead.
     pub base_departure: Option<super::consensus::Departure>,
 }
 
@@ -412,8 +412,8 @@ impl FittedNarx {
                     }
                 }
                 super::base::BaseUse::Base => {
-                    // a base that leaves its rivals' consensus on this record gives way to the
-                    // first rival within it, with that rival's band
+                    // a base that leaves its committee's consensus on this record gives way to
+                    // the first member within it, with that member's band
                     let std = self.outputs[o].scaling.std;
                     let mut band = self.outputs[o].band.as_ref();
                     let consensus = base.consensus(o, &g[o], std, history, rec)?;
@@ -790,7 +790,7 @@ pub struct OutputEvaluation {
     /// Ensemble members whose test free run diverged (left out of the combination).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub diverged_members_test: Vec<usize>,
-    /// Where the output's grey-box base departed from its rivals' consensus on the test
+    /// Where the output's grey-box base departed from its committee's consensus on the test
     /// record ([`super::consensus`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base_departure_test: Option<super::consensus::Departure>,
