@@ -123,15 +123,15 @@ fn a_2dof_record_with_new_input_combinations_in_its_test_half_is_identified() {
             assert!(h.iter().all(|v| v.is_finite() && *v > 0.0));
         }
     }
-    // each output on the base alone keeps its rivals, and stays within their consensus here
+    // each output on the base alone keeps its committee, and stays within its consensus here
     for (o, pr) in p.iter().enumerate() {
         if base.uses(o) == BaseUse::Base {
             assert!(!base.outputs[o].alternatives.is_empty(), "output {o}");
             assert_eq!(pr.base_departure, None, "output {o}");
         }
     }
-    // a base that leaves its rivals (here shifted by 100 standard deviations) gives way to
-    // the first rival within their consensus, and says so
+    // a base that leaves its committee (here shifted by 100 standard deviations) gives way to
+    // the first member within its consensus, and says so
     let o = (0..p.len())
         .find(|&o| base.uses(o) == BaseUse::Base)
         .expect("an output on the base alone");
@@ -147,25 +147,25 @@ fn a_2dof_record_with_new_input_combinations_in_its_test_half_is_identified() {
     let by = d
         .replaced_by
         .as_ref()
-        .expect("a rival within the consensus");
-    let rival = base.outputs[o]
+        .expect("a member within the consensus");
+    let member = base.outputs[o]
         .alternatives
         .iter()
         .find(|a| &a.name() == by)
         .unwrap();
-    let mut as_rival = m.clone();
-    let spec = as_rival.base.as_mut().unwrap().plant.as_mut().unwrap();
-    spec.outputs[o] = rival.output.clone();
-    as_rival.base.as_mut().unwrap().outputs[o]
+    let mut as_member = m.clone();
+    let spec = as_member.base.as_mut().unwrap().plant.as_mut().unwrap();
+    spec.outputs[o] = member.output.clone();
+    as_member.base.as_mut().unwrap().outputs[o]
         .alternatives
         .clear();
-    let r = as_rival
+    let r = as_member
         .predict_after(Some(&train), &test, Mode::FreeRun)
         .unwrap();
     assert_eq!(w[o].values, r[o].values);
     let y = &test.outputs[o].values;
     let r2 = hystbench::metrics::scores(y, &w[o].values).r2.unwrap();
-    assert!(r2 >= 0.95, "the rival's free-run test R^2 {r2}");
+    assert!(r2 >= 0.95, "the member's free-run test R^2 {r2}");
     // a damaged base is refused with its name
     let mut v: serde_json::Value = serde_json::from_str(&m.to_json()).unwrap();
     v["model"]["base"]["plant"]["outputs"][0]["dynamics"] =

@@ -997,7 +997,8 @@ impl NarxConfig {
             // on a short record, the committee its predictions are checked against
             // ([`super::consensus`]): the other candidates that the choice found comparable
             // (cross-validated MSE within `MEAN_ERROR_RATIO` of the lowest), each one's fit
-            // without the last block, in the order of preference
+            // without the last block, in the order of preference; then its own fits without
+            // each block
             if short {
                 let challengers: Vec<bool> = cands.iter().map(|c| c.envelope_split).collect();
                 let errs = &judged_errors[o];
@@ -1010,19 +1011,9 @@ impl NarxConfig {
                     })
                     .map(|(_, i)| i)
                     .collect();
-                if std::env::var_os("HYSTBENCH_TRACE").is_some() {
-                    let runs: Vec<Option<&[f64]>> =
-                        order.iter().map(|&i| Some(&cands[i].sim[o][..])).collect();
-                    let d = departures(&runs, m.outputs[o].scaling.std);
-                    eprintln!(
-                        "consensus {} cross-validated: departure {:?}, other candidates {:?}",
-                        m.outputs[o].name,
-                        d[0],
-                        &d[1..]
-                    );
-                }
+                // (the chosen candidate's own fits carry its band: `sim[o]` is its run)
                 let c = &cands[picks[o]];
-                let own_band = base_band(y, &c.sim[o], &networks[o], n_fit, short);
+                let own_band = m.outputs[o].band.clone();
                 choices[o].alternatives = order[1..]
                     .iter()
                     .map(|&i| Alternative {
