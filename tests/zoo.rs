@@ -250,8 +250,27 @@ fn a_small_zoo_is_scored_against_the_linear_baseline() {
     assert_eq!(summed, outputs);
     let csv = std::fs::read_to_string(z.join("score/results.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + outputs as usize);
+    assert!(csv.lines().next().unwrap().contains(",outside_share,"));
     let report = std::fs::read_to_string(z.join("score/report.md")).unwrap();
     assert!(report.contains("| 1dof-") && report.contains("(r2.png)"));
+    // each record says how much of its test half leaves the training region, and each class
+    // counts the records that leave it on at least 10 % of their samples
+    assert!(report.contains("| class | records | leaving | below the floor |"));
+    let leaving = records
+        .iter()
+        .filter(|r| {
+            let share = r["outside"].as_f64().unwrap();
+            assert!((0.0..=1.0).contains(&share), "{r}");
+            share >= 0.1
+        })
+        .count() as u64;
+    let counted: u64 = v["classes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["leaving"].as_u64().unwrap())
+        .sum();
+    assert_eq!(counted, leaving);
     let png = std::fs::read(z.join("score/r2.png")).unwrap();
     assert!(png.starts_with(b"\x89PNG"), "r2.png is a PNG");
     // every output with a band reports its coverage

@@ -61,6 +61,12 @@ pub struct RecordScore {
     pub samples: usize,
     pub sampling_period_s: f64,
     pub outputs: Vec<OutputScore>,
+    /// The largest share of the test half's samples outside the training region in one way
+    /// (an input beyond its training range, faster than in training, or the inputs in
+    /// combinations the training half did not visit: [`crate::narx::FittedNarx::outside`], what
+    /// `identify` warns of); 0 inside. A score written before it was kept reads as 0.
+    #[serde(default)]
+    pub outside: f64,
     /// Wall-clock time of the default identifier's fit (s); records scored side by side
     /// ([`Schedule`]) share the threads, and each takes longer than alone.
     pub seconds: f64,
@@ -113,6 +119,10 @@ pub struct ClassSummary {
     /// (over outputs with a band).
     pub covered_090: usize,
     pub mean_coverage: Option<f64>,
+    /// Records whose test half leaves the training region on at least [`OUTSIDE_NOTED`] of its
+    /// samples ([`RecordScore::outside`]), and of the records below the floor, those that do.
+    pub leaving: usize,
+    pub below_floor_leaving: usize,
     /// Outputs whose model is the grey-box base alone, and the base under a network.
     pub base_alone: usize,
     pub base_and_network: usize,
@@ -121,6 +131,10 @@ pub struct ClassSummary {
     pub median_seconds: f64,
     pub total_seconds: f64,
 }
+
+/// The share of a test half's samples outside the training region from which a record counts
+/// as leaving it in the report ([`ClassSummary::leaving`]).
+pub const OUTSIDE_NOTED: f64 = 0.1;
 
 /// A scored zoo.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -197,6 +211,11 @@ fn score_member(dir: &Path, e: &IndexEntry) -> Result<RecordScore, ZooError> {
         samples: e.samples,
         sampling_period_s: e.sampling_period_s,
         outputs,
+        outside: model
+            .outside(&test)
+            .iter()
+            .map(|o| o.share)
+            .fold(0.0, f64::max),
         seconds,
     })
 }
@@ -350,6 +369,12 @@ fn summarise(class: Class, records: &[RecordScore]) -> Option<ClassSummary> {
             let c: Vec<f64> = outs.iter().filter_map(|o| o.coverage).collect();
             (!c.is_empty()).then(|| c.iter().sum::<f64>() / c.len() as f64)
         },
+        leaving: mine.iter().filter(|r| r.outside >= OUTSIDE_NOTED).count(),
+        below_floor_leaving: mine
+            .iter()
+            .filter(|r| r.outside >= OUTSIDE_NOTED)
+            .filter(|r| !r.outputs.iter().all(|o| o.r2.is_some_and(|v| v >= floor)))
+            .count(),
         base_alone: outs.iter().filter(|o| o.model == BaseUse::Base).count(),
         base_and_network: outs
             .iter()
@@ -399,13 +424,13 @@ impl ZooScore {
 
     /// `results.csv`: one row per output of each record.
     pub fn to_csv(&self) -> String {
-        let mut s = String::from("index,class,samples,sampling_period_s,output,r2_test,diverged,r2_train,arx_r2_test,arx_diverged,worse_than_arx,truth_r2_test,r2_clean,arx_r2_clean,band_coverage,model,seconds\n");
+        let mut s = String::from("index,class,samples,sampling_period_s,output,r2_test,diverged,r2_train,arx_r2_test,arx_diverged,worse_than_arx,truth_r2_test,r2_clean,arx_r2_clean,band_coverage,model,outside_share,seconds\n");
         let opt = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
         for r in &self.records {
             for o in &r.outputs {
                 let _ = writeln!(
                     s,
-                    "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                    "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                     r.index,
                     r.class,
                     r.samples,
@@ -422,6 +447,7 @@ impl ZooScore {
                     opt(o.arx_r2_clean),
                     opt(o.coverage),
                     o.model.as_str(),
+                    r.outside,
                     r.seconds
                 );
             }
@@ -479,6 +505,23 @@ impl ZooScore {
                 share(c.records_at_floor, c.records),
                 share(c.records_at_floor_clean, c.records),
                 share(c.records_at_floor_truth, c.records),
+            );
+        }
+        let _ = write!(
+            s,
+            "\nWhere the test half leaves the training region (the largest share of its samples outside it in one way: an input beyond its training range, faster than in training, or the inputs in new combinations; what `identify` warns of) on at least {:.0} % of its samples, and the records below the floor that do: a model there extrapolates.\n\n| class | records | leaving | below the floor | below the floor and leaving |\n|---|---|---|---|---|\n",
+            100.0 * OUTSIDE_NOTED
+        );
+        for c in &self.classes {
+            let below = c.records - c.records_at_floor;
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} |",
+                c.class,
+                c.records,
+                share(c.leaving, c.records),
+                below,
+                share(c.below_floor_leaving, below),
             );
         }
         s += "\nAgainst the noiseless output (the model's own error, without the measurement noise):\n\n";
