@@ -241,13 +241,16 @@ fn a_small_zoo_is_scored_against_the_linear_baseline() {
             }
         }
     }
-    let summed: u64 = v["classes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|c| c["outputs"].as_u64().unwrap())
-        .sum();
-    assert_eq!(summed, outputs);
+    // a count summed over the classes
+    let over_classes = |key: &str| -> u64 {
+        v["classes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c[key].as_u64().unwrap())
+            .sum()
+    };
+    assert_eq!(over_classes("outputs"), outputs);
     let csv = std::fs::read_to_string(z.join("score/results.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + outputs as usize);
     assert!(csv.lines().next().unwrap().contains(",outside_share,"));
@@ -264,13 +267,7 @@ fn a_small_zoo_is_scored_against_the_linear_baseline() {
             share >= 0.1
         })
         .count() as u64;
-    let counted: u64 = v["classes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|c| c["leaving"].as_u64().unwrap())
-        .sum();
-    assert_eq!(counted, leaving);
+    assert_eq!(over_classes("leaving"), leaving);
     let png = std::fs::read(z.join("score/r2.png")).unwrap();
     assert!(png.starts_with(b"\x89PNG"), "r2.png is a PNG");
     // every output with a band reports its coverage
