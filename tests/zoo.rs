@@ -268,6 +268,37 @@ fn a_small_zoo_is_scored_against_the_linear_baseline() {
         })
         .count() as u64;
     assert_eq!(over_classes("leaving"), leaving);
+    // the share is what `identify` warns of on the same split (first half trains, second tests)
+    let widest = records
+        .iter()
+        .max_by(|a, b| {
+            a["outside"]
+                .as_f64()
+                .unwrap()
+                .total_cmp(&b["outside"].as_f64().unwrap())
+        })
+        .unwrap();
+    let rec = z.join(format!(
+        "records/{:04}.csv",
+        widest["index"].as_u64().unwrap()
+    ));
+    let o = hystbench(&[
+        "identify",
+        "--data",
+        s(&rec),
+        "--out",
+        s(&t.path().join("m.json")),
+        "--json",
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let id: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let warned = id["extrapolation"].as_array().map_or(0.0, |a| {
+        a.iter()
+            .map(|e| e["share"].as_f64().unwrap())
+            .fold(0.0, f64::max)
+    });
+    assert_eq!(widest["outside"].as_f64().unwrap(), warned, "{widest}");
     let png = std::fs::read(z.join("score/r2.png")).unwrap();
     assert!(png.starts_with(b"\x89PNG"), "r2.png is a PNG");
     // every output with a band reports its coverage

@@ -326,10 +326,12 @@ fn summarise(class: Class, records: &[RecordScore]) -> Option<ClassSummary> {
         return None;
     }
     let outs: Vec<&OutputScore> = mine.iter().flat_map(|r| &r.outputs).collect();
+    // whether every output of a record reaches `t` in the score `f`
+    let reaches = |r: &RecordScore, t: f64, f: fn(&OutputScore) -> Option<f64>| {
+        r.outputs.iter().all(|o| f(o).is_some_and(|v| v >= t))
+    };
     let every = |t: f64, f: fn(&OutputScore) -> Option<f64>| {
-        mine.iter()
-            .filter(|r| r.outputs.iter().all(|o| f(o).is_some_and(|v| v >= t)))
-            .count()
+        mine.iter().filter(|r| reaches(r, t, f)).count()
     };
     let all = |t: f64| every(t, |o| o.r2);
     let (floor, floor_share) = class.floor();
@@ -372,8 +374,7 @@ fn summarise(class: Class, records: &[RecordScore]) -> Option<ClassSummary> {
         leaving: mine.iter().filter(|r| r.outside >= OUTSIDE_NOTED).count(),
         below_floor_leaving: mine
             .iter()
-            .filter(|r| r.outside >= OUTSIDE_NOTED)
-            .filter(|r| !r.outputs.iter().all(|o| o.r2.is_some_and(|v| v >= floor)))
+            .filter(|r| r.outside >= OUTSIDE_NOTED && !reaches(r, floor, |o| o.r2))
             .count(),
         base_alone: outs.iter().filter(|o| o.model == BaseUse::Base).count(),
         base_and_network: outs
@@ -571,5 +572,55 @@ impl ZooScore {
             "\nIdentifier time over all records: {total:.1} s, each fit's wall clock (the ARX fits are not counted; records scored side by side share the threads, so each takes longer than alone: `zoo score --one-at-a-time` times a lone fit)."
         );
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(index: usize, r2: f64, outside: f64) -> RecordScore {
+        RecordScore {
+            index,
+            class: Class::OneDofShort,
+            samples: 2000,
+            sampling_period_s: 1e-3,
+            outputs: vec![OutputScore {
+                name: "y".into(),
+                r2: Some(r2),
+                diverged: false,
+                r2_train: Some(r2),
+                arx_r2: Some(0.5),
+                arx_diverged: false,
+                truth_r2: Some(0.999),
+                r2_clean: Some(r2),
+                arx_r2_clean: Some(0.5),
+                coverage: None,
+                model: BaseUse::Base,
+            }],
+            outside,
+            seconds: 1.0,
+        }
+    }
+
+    #[test]
+    fn records_leaving_the_training_region_are_counted_below_the_floor_and_not() {
+        // at the floor inside, at the floor leaving, below it leaving, below it just inside
+        let records = [
+            record(0, 0.995, 0.0),
+            record(1, 0.995, 0.3),
+            record(2, 0.95, OUTSIDE_NOTED),
+            record(3, 0.95, 0.099),
+        ];
+        let c = summarise(Class::OneDofShort, &records).unwrap();
+        assert_eq!(
+            (c.records_at_floor, c.leaving, c.below_floor_leaving),
+            (2, 2, 1)
+        );
+        let report = ZooScore::of(1, records.to_vec()).to_markdown();
+        assert!(
+            report.contains("| 1dof-short | 4 | 2 (50 %) | 2 | 1 (50 %) |"),
+            "{report}"
+        );
     }
 }
