@@ -1263,6 +1263,51 @@ mod tests {
         assert_eq!(selection_samples(&flat, 80_000), BASE_SELECTION_SAMPLES);
     }
 
+    /// A long record's fitting part takes creep over the one decade it spans (own zoo seed
+    /// 1036, 2-DoF long member 156: 2.2 ms, about 6,000 fitting samples); a short record of
+    /// the same span still needs two.
+    #[test]
+    fn a_long_record_takes_creep_over_one_decade_a_short_one_does_not() {
+        let ts = 0.0022;
+        let record = |n: usize| {
+            let u: Vec<f64> = (0..n)
+                .map(|k| {
+                    let t = k as f64 * ts;
+                    10.0 * (1.0 + 0.5 * (0.3 * t).sin()) * (2.1 * t).sin()
+                })
+                .collect();
+            // a slow first-order drift of the input (tau = 1 s) over a static gain
+            let a = (-ts / 1.0f64).exp();
+            let mut z = 0.0;
+            let y: Vec<f64> = u
+                .iter()
+                .map(|&v| {
+                    z = a * z + (1.0 - a) * v;
+                    0.8 * v + 0.3 * z
+                })
+                .collect();
+            IoRecord::siso("r.csv", ts, u, y)
+        };
+        let list = "hysteresis,creep,dynamics";
+        // 6,000 fitting samples span 4.4 s: time constants 0.1 s and 1 s, one decade
+        assert_eq!(
+            crate::effect::creep::creep_time_constants(6_000, ts, true),
+            Ok(vec![0.1, 1.0])
+        );
+        let long = record(7_500);
+        let cfg = list_config(&long, list, 6_000).expect("config");
+        assert!(cfg.options.parsimonious_creep);
+        let fitted = cfg.fit(&long).expect("a long record's creep list fits");
+        assert!(format!("{:?}", fitted.plant.spec).contains("creep"));
+        let short = record(6_000);
+        let cfg = list_config(&short, list, short.len()).expect("config");
+        assert!(!cfg.options.parsimonious_creep);
+        assert!(matches!(
+            cfg.fit(&short),
+            Err(crate::graybox::GreyBoxError::TooShort { .. })
+        ));
+    }
+
     /// The two verdicts on a grey-box under a residual network: it must earn its place against
     /// the grey-box alone, and keeps it against a network alone that only ties it.
     #[test]
