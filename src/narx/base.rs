@@ -517,9 +517,9 @@ fn list_config(train: &IoRecord, list: &str, n_fit: usize) -> Option<GreyBoxConf
     // a long record's fitting part takes creep over the decades it spans, one or more (a
     // refused creep list leaves a slow drift to the play that barely moves: own zoo seed 1036,
     // 2-DoF long member 156, y1 -22.1 -> 0.9995, found there; held out on seed 1037's 2-DoF
-    // long records, 46 -> 49 of 59 at 0.99); a short record's cross-validation
-    // keeps the two decades (one time constant or two on 250 samples: no held-out gain,
-    // seeds 1036 and independent 10)
+    // long records, 46 -> 49 of 59 at 0.99); a short record's cross-validation keeps the two
+    // decades (one time constant or two on 250 samples: no held-out gain, seeds 1036 and
+    // independent 10)
     cfg.options.parsimonious_creep = n_fit < train.len();
     if !names(list, "modes") {
         cfg.options.starts_rows = BASE_STARTS_ROWS;
