@@ -210,6 +210,12 @@ pub trait TermFit: Send + Sync {
     fn start_grid(&self) -> Vec<Vec<f64>> {
         Vec::new()
     }
+    /// The term's columns (its own indices) whose coefficients sample one density over
+    /// evenly spaced thresholds (the plays of a Prandtl-Ishlinskii term): a ridge smooths them
+    /// (second differences) rather than shrinking each. None by default.
+    fn density_columns(&self) -> Option<std::ops::Range<usize>> {
+        None
+    }
     /// Number of columns (fixed by the setup).
     fn n_columns(&self) -> usize;
     /// The columns over the whole record for parameters `th` (this term's slice).

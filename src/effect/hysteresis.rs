@@ -777,6 +777,11 @@ impl<'a> PiTerm<'a> {
 }
 
 impl TermFit for PiTerm<'_> {
+    /// The plays: their weights sample the Prandtl-Ishlinskii density at evenly spaced
+    /// thresholds (three or more have a second difference).
+    fn density_columns(&self) -> Option<Range<usize>> {
+        (self.thresholds.len() >= 3).then_some(0..self.thresholds.len())
+    }
     fn n_columns(&self) -> usize {
         self.thresholds.len() + self.knots.len() + usize::from(self.bw.is_some())
     }

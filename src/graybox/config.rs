@@ -18,9 +18,12 @@ pub struct FitOptions {
     /// Samples of the fitted part that the fit leaves out (the model runs through them):
     /// one block of a blocked cross-validation ([`GreyBoxConfig::cross_validate`]).
     pub held_out: Option<std::ops::Range<usize>>,
-    /// Relative ridge on the hysteresis terms' coefficients (plays, input map, Bouc-Wen),
-    /// shrinking each path toward a linear gain: lambda * ||column||^2 * c^2 joins the cost
-    /// (0: none). A short record's base chooses it by cross-validation.
+    /// Relative ridge on the hysteresis terms' coefficients (0: none): on the input map's and
+    /// the Bouc-Wen column's, lambda * ||column||^2 * c^2 joins the cost, shrinking each path
+    /// toward a linear gain; on a Prandtl-Ishlinskii term's plays (three or more), lambda
+    /// times their mean ||column||^2 times the squared second differences of their weights,
+    /// smoothing the density (a strong ridge leaves an affine density, not no loop). The
+    /// identifier's bases choose it by cross-validation.
     pub ridge: f64,
     /// Choose each output's ridge among [`RIDGES`] by blocked cross-validation of the linear
     /// coefficients at the fitted nonlinear parameters (`OutputProblem::ridge_by_cross_validation`),

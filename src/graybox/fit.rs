@@ -741,7 +741,8 @@ impl<'a> OutputProblem<'a> {
         self
     }
 
-    /// Which basis columns a ridge shrinks: the terms' (not the gains, not the offset).
+    /// Which basis columns a ridge shrinks one by one: the terms' (not the gains, not the
+    /// offset), but for those of a density ([`OutputProblem::density_groups`]).
     fn term_columns(&self) -> Vec<bool> {
         let mut p = vec![false; self.layout.n_cols];
         for path in &self.layout.paths {
@@ -749,7 +750,73 @@ impl<'a> OutputProblem<'a> {
                 p[t.cols.clone()].fill(true);
             }
         }
+        for g in self.density_groups() {
+            p[g].fill(false);
+        }
         p
+    }
+
+    /// The basis columns whose coefficients sample one density each
+    /// ([`crate::effect::fitting::TermFit::density_columns`]): a ridge penalises their second
+    /// differences (a smooth density; Tikhonov's second-order regularisation), relative to the
+    /// group's mean column energy, instead of each coefficient.
+    ///
+    /// Reference: A. N. Tikhonov, V. Y. Arsenin, *Solutions of Ill-Posed Problems*, Winston,
+    /// 1977; P. Eilers, B. Marx, Statistical Science 11(2):89-121, 1996 (difference penalties).
+    fn density_groups(&self) -> Vec<Range<usize>> {
+        self.layout
+            .paths
+            .iter()
+            .flat_map(|p| &p.terms)
+            .filter_map(|t| {
+                let r = t.term.density_columns()?;
+                Some(t.cols.start + r.start..t.cols.start + r.end)
+            })
+            .collect()
+    }
+
+    /// Adds `lambda` times the density groups' difference penalty to the Gram matrix `g`
+    /// (its diagonal the columns' energies); returns the penalty's matrix for the cost.
+    fn add_density_penalty(
+        groups: &[Range<usize>],
+        g: &mut DMatrix<f64>,
+        lambda: f64,
+    ) -> Vec<(Range<usize>, f64)> {
+        let mut scales = Vec::new();
+        if lambda <= 0.0 {
+            return scales;
+        }
+        for grp in groups {
+            let n = grp.len();
+            let s = grp.clone().map(|i| g[(i, i)]).sum::<f64>() / n as f64;
+            let w = lambda * s;
+            // D^T D of the second differences [1, -2, 1]
+            for k in 0..n - 2 {
+                let idx = [grp.start + k, grp.start + k + 1, grp.start + k + 2];
+                let d = [1.0, -2.0, 1.0];
+                for a in 0..3 {
+                    for b in 0..3 {
+                        g[(idx[a], idx[b])] += w * d[a] * d[b];
+                    }
+                }
+            }
+            scales.push((grp.clone(), w));
+        }
+        scales
+    }
+
+    /// The density penalty `sum w ||D c||^2` of the coefficients `coef`.
+    fn density_penalty(scales: &[(Range<usize>, f64)], coef: &[f64]) -> f64 {
+        scales
+            .iter()
+            .map(|(grp, w)| {
+                let c = &coef[grp.clone()];
+                w * c
+                    .windows(3)
+                    .map(|t| (t[0] - 2.0 * t[1] + t[2]).powi(2))
+                    .sum::<f64>()
+            })
+            .sum()
     }
 
     /// One pass over the record at `th`: `visit(rows, columns)` for each piece in order, with
@@ -977,6 +1044,7 @@ impl<'a> OutputProblem<'a> {
             b_all += b;
         }
         let terms = self.term_columns();
+        let groups = self.density_groups();
         let held = self.held_out.clone().unwrap_or(0..0);
         let errors: Vec<Option<Vec<f64>>> = ridges
             .par_iter()
@@ -984,6 +1052,7 @@ impl<'a> OutputProblem<'a> {
                 let mut e = Vec::with_capacity(n);
                 for (block, (gb, bb)) in blocks.iter().zip(&parts) {
                     let mut g = &g_all - gb;
+                    Self::add_density_penalty(&groups, &mut g, lambda);
                     for i in (0..m).filter(|&i| terms[i]) {
                         g[(i, i)] *= 1.0 + lambda;
                     }
@@ -1118,6 +1187,7 @@ impl<'a> OutputProblem<'a> {
             .map(|t| t && self.ridge > 0.0)
             .collect();
         let energy: Vec<f64> = (0..m).map(|i| g[(i, i)]).collect();
+        let density = Self::add_density_penalty(&self.density_groups(), &mut g, self.ridge);
         for (i, _) in penalised.iter().enumerate().filter(|(_, p)| **p) {
             g[(i, i)] += self.ridge * energy[i];
         }
@@ -1155,7 +1225,8 @@ impl<'a> OutputProblem<'a> {
         let penalty: f64 = (0..m)
             .filter(|&i| penalised[i])
             .map(|i| self.ridge * energy[i] * sol.coef[i] * sol.coef[i])
-            .sum();
+            .sum::<f64>()
+            + Self::density_penalty(&density, sol.coef.as_slice());
         let cost = 0.5 * (r.iter().map(|v| v * v).sum::<f64>() + penalty);
         if !cost.is_finite() {
             return None;
@@ -1894,6 +1965,39 @@ pub(crate) fn levenberg_marquardt(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The density penalty is lambda times the group's mean energy times D^T D (D the second
+    /// differences), the cost term is its quadratic form, and an affine density pays nothing.
+    #[test]
+    fn the_density_penalty_is_the_quadratic_form_of_second_differences() {
+        let m = 7;
+        let mut g = DMatrix::from_fn(m, m, |i, j| if i == j { 1.0 + i as f64 } else { 0.1 });
+        let before = g.clone();
+        let groups = [1..6];
+        let scales = OutputProblem::add_density_penalty(&groups, &mut g, 0.5);
+        // mean energy of columns 1..6: (2 + 3 + 4 + 5 + 6) / 5 = 4
+        assert_eq!(scales, vec![(1..6, 2.0)]);
+        let d = DMatrix::from_fn(3, m, |k, j| match j as i64 - (k as i64 + 1) {
+            0 => 1.0,
+            1 => -2.0,
+            2 => 1.0,
+            _ => 0.0,
+        });
+        let expected: DMatrix<f64> = &before + 2.0 * d.transpose() * &d;
+        let diff: DMatrix<f64> = &g - &expected;
+        assert!(diff.abs().max() < 1e-12);
+        let c = [0.3, -1.0, 2.0, 0.5, 0.7, -0.2, 4.0];
+        let cv = DVector::from_column_slice(&c);
+        let quad = (cv.transpose() * (&g - &before) * &cv)[(0, 0)];
+        let pen = OutputProblem::density_penalty(&scales, &c);
+        assert!((quad - pen).abs() < 1e-12 * quad.abs().max(1.0));
+        let affine = [9.0, 1.0, 1.5, 2.0, 2.5, 3.0, -9.0];
+        assert!(OutputProblem::density_penalty(&scales, &affine).abs() < 1e-24);
+        // no ridge: nothing added
+        let mut h = before.clone();
+        assert!(OutputProblem::add_density_penalty(&groups, &mut h, 0.0).is_empty());
+        assert_eq!(h, before);
+    }
 
     /// A path of either sign behind a mode at 2 Hz, driven by sines at 3-5 Hz (above the mode:
     /// the output lags the input by more than 90 degrees, and a static fit of y on u takes

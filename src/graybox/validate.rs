@@ -186,5 +186,46 @@ mod tests {
         let fit = cfg.fit(&hysteretic).unwrap();
         assert!(fit.fit.outputs[0].ridge < crate::graybox::RIDGES[0]);
         assert!(fit.fit.r2.unwrap() > 0.9999, "{:?}", fit.fit.r2);
+        // a fixed ridge smooths the plays' weights (the density's second differences) rather
+        // than shrinking each
+        let weights = |ridge: f64| -> Vec<f64> {
+            let mut cfg = GreyBoxConfig::from_effect_list("hysteresis").unwrap();
+            cfg.options.ridge = ridge;
+            let fit = cfg.fit(&hysteretic).unwrap();
+            let json = serde_json::to_value(&fit.plant.spec).unwrap();
+            let mut found = Vec::new();
+            find_weights(&json, &mut found);
+            found
+        };
+        let roughness = |w: &[f64]| -> f64 {
+            let d2: f64 = w
+                .windows(3)
+                .map(|t| (t[0] - 2.0 * t[1] + t[2]).powi(2))
+                .sum();
+            d2 / w.iter().map(|v| v * v).sum::<f64>()
+        };
+        // unridged: the lone play; a strong ridge: a smooth density that still carries the
+        // loop (a ridge on each weight would have shrunk them all toward nothing)
+        let (free, smooth) = (weights(0.0), weights(1e3));
+        assert!(free.len() >= 3 && smooth.len() >= 3, "{free:?} {smooth:?}");
+        assert!(roughness(&free) > 1.0, "{free:?}");
+        assert!(roughness(&smooth) < 1e-3, "{smooth:?}");
+        assert!(smooth.iter().sum::<f64>() > 0.2, "{smooth:?}");
+    }
+
+    /// The plays' weights of every Prandtl-Ishlinskii operator in a plant file's JSON.
+    fn find_weights(v: &serde_json::Value, out: &mut Vec<f64>) {
+        match v {
+            serde_json::Value::Object(m) => {
+                if let Some(pi) = m.get("prandtl_ishlinskii") {
+                    if let Some(w) = pi.get("weights").and_then(|w| w.as_array()) {
+                        out.extend(w.iter().filter_map(|x| x.as_f64()));
+                    }
+                }
+                m.values().for_each(|x| find_weights(x, out));
+            }
+            serde_json::Value::Array(a) => a.iter().for_each(|x| find_weights(x, out)),
+            _ => {}
+        }
     }
 }
