@@ -1973,8 +1973,8 @@ mod tests {
         let m = 7;
         let mut g = DMatrix::from_fn(m, m, |i, j| if i == j { 1.0 + i as f64 } else { 0.1 });
         let before = g.clone();
-        let groups = [1..6];
-        let scales = OutputProblem::add_density_penalty(&groups, &mut g, 0.5);
+        let group = 1..6;
+        let scales = OutputProblem::add_density_penalty(std::slice::from_ref(&group), &mut g, 0.5);
         // mean energy of columns 1..6: (2 + 3 + 4 + 5 + 6) / 5 = 4
         assert_eq!(scales, vec![(1..6, 2.0)]);
         let d = DMatrix::from_fn(3, m, |k, j| match j as i64 - (k as i64 + 1) {
@@ -1995,7 +1995,10 @@ mod tests {
         assert!(OutputProblem::density_penalty(&scales, &affine).abs() < 1e-24);
         // no ridge: nothing added
         let mut h = before.clone();
-        assert!(OutputProblem::add_density_penalty(&groups, &mut h, 0.0).is_empty());
+        assert!(
+            OutputProblem::add_density_penalty(std::slice::from_ref(&group), &mut h, 0.0)
+                .is_empty()
+        );
         assert_eq!(h, before);
     }
 
