@@ -260,27 +260,28 @@ fn an_asymmetric_loop_is_identified_with_its_output_map() {
     assert_identified_with(&rec, "+ output map");
 }
 
-/// A Prandtl-Ishlinskii loop squashed by dead zones with creep, driven by a chirp whose test
-/// half is faster than anything in the training half (a plant zoo member's kind): the network
-/// alone had been chosen there (free-run test R^2 0.982). A network that beats the grey-box
-/// alone on the validation part meets it under a network on its residual
-/// (`keeps_residual_network`, unit-tested in `narx::base`); with the lists chosen within one
-/// standard error on the validation part the grey-box here beats the network alone by itself.
-/// The model predicts the test half to 0.995 or better (0.998 with the residual network in
-/// range; 0.9977 since the second stage keeps its play weights' sign, the residual network
-/// leaving its range on the faster test half and the grey-box alone predicting), its band is
-/// never narrower than the grey-box alone's, and the grey-box alone's band stands in where
-/// either network leaves its range.
+/// A Prandtl-Ishlinskii loop squashed by dead zones, with creep and a term in the input's rate
+/// (viscous: none of the base's lists has one), driven by a chirp whose test half is faster
+/// than anything in the training half (a plant zoo member's kind). The grey-box alone misses
+/// the rate term: the network on its residual takes up what the base lacks (`keeps_residual_network`, unit-tested in
+/// `narx::base`) and predicts the test half to 0.995 or better (0.9961), better than the
+/// grey-box alone (0.9943). The network alone stays as the second opinion that widens the band; where it
+/// leaves its range the grey-box alone's band stands in, and where the residual network
+/// leaves its range the grey-box alone predicts, with its own band.
+///
+/// (Without the rate term the smoothed play density, 2026-12-05, lets the grey-box alone win
+/// this record, 0.9984; with it, the pair is chosen at 0.996.)
 #[test]
 fn a_faster_chirp_is_predicted_by_the_grey_box_under_a_residual_network() {
     let th: Vec<String> = (1..=11).map(|k| format!("{}", 2.75 * k as f64)).collect();
     let plant = format!(
-        r#"{{"name": "pi_dead_zones_creep", "inputs": ["u"], "outputs": [{{"name": "y",
+        r#"{{"name": "pi_dead_zones_creep_viscous", "inputs": ["u"], "outputs": [{{"name": "y",
         "paths": [{{"input": "u", "hysteresis": {{"prandtl_ishlinskii": {{"linear_weight": 0.254,
         "thresholds": [{}],
         "weights": [0.0313, 0.0272, 0.0236, 0.0205, 0.0179, 0.0155, 0.0135, 0.0117, 0.0102, 0.0089, 0.0077],
         "dead_zones": {{"thresholds": [-10.95, -6.57, 0.0, 6.57, 10.95],
-        "weights": [-0.338, -0.339, 1.0, -0.339, -0.338]}}}}}}}}],
+        "weights": [-0.338, -0.339, 1.0, -0.339, -0.338]}}}}}},
+        "viscous": {{"coefficient": 0.01}}}}],
         "creep": {{"time_constants_s": [6.0], "gains": [0.157]}}}}]}}"#,
         th.join(", ")
     );
@@ -301,14 +302,14 @@ fn a_faster_chirp_is_predicted_by_the_grey_box_under_a_residual_network() {
     assert!(r2[0] >= 0.995, "free-run test R^2 {}", r2[0]);
     let band = choice.base_band.clone().expect("the grey-box alone's band");
     let with = m.predict(&test, Mode::FreeRun).unwrap();
-    // the network alone stays as the second opinion: the band widens where the two part, and
-    // the model file keeps it
+    // the residual network stays in its range on the test half
+    assert!(with[0].diverged_members.is_empty(), "{:?}", with[0]);
+    // the network alone stays as the second opinion: the model file keeps it, and the band
+    // (the pair's, widened where the two part: `narx::band`'s
+    // `spread_widens_the_band_and_bad_input_gives_none`) is the same read back
     assert!(choice.network_alone.is_some(), "{choice:?}");
     let h = with[0].half_width.as_ref().expect("a band");
-    // never narrower than the grey-box alone's; wider where the two part (on this record
-    // they agree within it since the second stage keeps its play weights' sign: the widening
-    // itself is `narx::band`'s `spread_widens_the_band_and_bad_input_gives_none`)
-    assert!(h.iter().all(|&x| x >= band.half_width(0.0)));
+    assert!(h.iter().all(|&x| x > 0.0));
     let back = FittedNarx::from_json(std::path::Path::new("m.json"), &m.to_json()).unwrap();
     assert_eq!(
         back.predict(&test, Mode::FreeRun).unwrap()[0]
@@ -328,19 +329,24 @@ fn a_faster_chirp_is_predicted_by_the_grey_box_under_a_residual_network() {
     let half = p[0].half_width.as_ref().expect("a band");
     assert!(half.iter().all(|&h| h == band.half_width(0.0)));
     // where the residual network leaves its range (here: a range it cannot stay in), the
-    // grey-box alone predicts, with its own band
+    // grey-box alone predicts, with its own band; it misses the rate term, which the residual
+    // network took up
     let mut narrow = m.clone();
     narrow.outputs[0].train_min = 1e6;
     narrow.outputs[0].train_max = 1e6;
     let alone = narrow.predict(&test, Mode::FreeRun).unwrap();
     assert!(alone[0].diverged_at.is_none() && !alone[0].diverged_members.is_empty());
-    // on this record the residual network already leaves its range on the faster test half
-    // (since the second stage keeps its play weights' sign): the model predicts there with the
-    // grey-box alone, as `narrow` does
-    assert_eq!(with[0].diverged_members, vec![0]);
-    assert_eq!(alone[0].values, with[0].values);
     let half = alone[0].half_width.as_ref().expect("a band");
     assert!(half.iter().all(|&h| h == band.half_width(0.0) && h > 0.0));
+    let y = &test.outputs[0].values;
+    let skip = y.len() - alone[0].values.len();
+    let r2_alone = hystbench::metrics::r2(&y[skip..], &alone[0].values).unwrap();
+    eprintln!("grey-box alone: free-run test R^2 {r2_alone}");
+    assert!(
+        r2_alone < r2[0],
+        "grey-box alone {r2_alone}, with the network {}",
+        r2[0]
+    );
 }
 
 /// A generalised Prandtl-Ishlinskii loop (Al Janaideh's plays: the ascending and descending
