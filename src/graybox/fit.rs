@@ -120,7 +120,8 @@ pub(crate) struct OutputProblem<'a> {
     excluded: Option<Vec<bool>>,
     /// Relative ridge on the terms' coefficients (not the path gains nor the offset):
     /// lambda * ||psi_i||^2 * c_i^2 is added to the cost, shrinking a path toward its linear
-    /// gain; 0 = none.
+    /// gain, but on a density's coefficients ([`OutputProblem::density_groups`]) the penalty
+    /// of their second differences; 0 = none.
     ridge: f64,
     u: Vec<&'a [f64]>,
     pub input_names: Vec<String>,
