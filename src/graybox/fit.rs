@@ -777,7 +777,9 @@ impl<'a> OutputProblem<'a> {
     }
 
     /// Adds `lambda` times the density groups' difference penalty to the Gram matrix `g`
-    /// (its diagonal the columns' energies); returns the penalty's matrix for the cost.
+    /// (its diagonal the columns' energies); returns each group with its weight `w` (lambda
+    /// times the group's mean column energy), for the cost ([`OutputProblem::density_penalty`]).
+    /// A group of fewer than three columns has no second difference and is left out.
     fn add_density_penalty(
         groups: &[Range<usize>],
         g: &mut DMatrix<f64>,
@@ -787,7 +789,7 @@ impl<'a> OutputProblem<'a> {
         if lambda <= 0.0 {
             return scales;
         }
-        for grp in groups {
+        for grp in groups.iter().filter(|g| g.len() >= 3) {
             let n = grp.len();
             let s = grp.clone().map(|i| g[(i, i)]).sum::<f64>() / n as f64;
             let w = lambda * s;

@@ -83,6 +83,8 @@ impl GreyBoxConfig {
 mod tests {
     use super::*;
     use crate::data::Signal;
+    use crate::effect::hysteresis::HysteresisSpec;
+    use crate::plant::EffectSpecs;
 
     #[test]
     fn blocks_tile_the_record() {
@@ -192,10 +194,15 @@ mod tests {
             let mut cfg = GreyBoxConfig::from_effect_list("hysteresis").unwrap();
             cfg.options.ridge = ridge;
             let fit = cfg.fit(&hysteretic).unwrap();
-            let json = serde_json::to_value(&fit.plant.spec).unwrap();
-            let mut found = Vec::new();
-            find_weights(&json, &mut found);
-            found
+            fit.plant.spec.outputs[0]
+                .paths
+                .iter()
+                .flat_map(|p| p.specs())
+                .find_map(|e| match e.as_any().downcast_ref::<HysteresisSpec>() {
+                    Some(HysteresisSpec::PrandtlIshlinskii(p)) => Some(p.weights.clone()),
+                    _ => None,
+                })
+                .expect("a Prandtl-Ishlinskii operator on a path")
         };
         let roughness = |w: &[f64]| -> f64 {
             let d2: f64 = w
@@ -211,21 +218,5 @@ mod tests {
         assert!(roughness(&free) > 1.0, "{free:?}");
         assert!(roughness(&smooth) < 1e-3, "{smooth:?}");
         assert!(smooth.iter().sum::<f64>() > 0.2, "{smooth:?}");
-    }
-
-    /// The plays' weights of every Prandtl-Ishlinskii operator in a plant file's JSON.
-    fn find_weights(v: &serde_json::Value, out: &mut Vec<f64>) {
-        match v {
-            serde_json::Value::Object(m) => {
-                if let Some(pi) = m.get("prandtl_ishlinskii") {
-                    if let Some(w) = pi.get("weights").and_then(|w| w.as_array()) {
-                        out.extend(w.iter().filter_map(|x| x.as_f64()));
-                    }
-                }
-                m.values().for_each(|x| find_weights(x, out));
-            }
-            serde_json::Value::Array(a) => a.iter().for_each(|x| find_weights(x, out)),
-            _ => {}
-        }
     }
 }
