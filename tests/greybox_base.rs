@@ -123,20 +123,33 @@ fn a_2dof_record_with_new_input_combinations_in_its_test_half_is_identified() {
             assert!(h.iter().all(|v| v.is_finite() && *v > 0.0));
         }
     }
-    // each output on the base alone keeps its committee, and stays within its consensus here
+    // each output on the base alone keeps its committee, predicts its median, and departs
+    // from it by little here
     for (o, pr) in p.iter().enumerate() {
         if base.uses(o) == BaseUse::Base {
             assert!(!base.outputs[o].alternatives.is_empty(), "output {o}");
             assert_eq!(pr.base_departure, None, "output {o}");
         }
     }
-    // a base that leaves its committee (here shifted by 100 standard deviations) gives way to
-    // the first member within its consensus, and says so
     let o = (0..p.len())
         .find(|&o| base.uses(o) == BaseUse::Base)
         .expect("an output on the base alone");
-    let mut wild = m.clone();
+    // without its committee the output predicts the chosen base's run, which the median
+    // keeps close to but is not (it is one vote among the committee's)
+    let mut alone = m.clone();
+    alone.base.as_mut().unwrap().outputs[o].alternatives.clear();
+    let a = alone
+        .predict_after(Some(&train), &test, Mode::FreeRun)
+        .unwrap();
     let std = m.outputs[o].scaling.std;
+    let rms = |x: &[f64], y: &[f64]| {
+        (x.iter().zip(y).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / x.len() as f64).sqrt()
+    };
+    let apart = rms(&a[o].values, &p[o].values) / std;
+    assert!(apart > 0.0 && apart < 0.1, "{apart}");
+    // a base that leaves its committee (here shifted by 100 standard deviations) is outvoted:
+    // the median of the others predicts, and the departure is reported
+    let mut wild = m.clone();
     let spec = wild.base.as_mut().unwrap().plant.as_mut().unwrap();
     spec.outputs[o].offset += 100.0 * std;
     let w = wild
@@ -144,28 +157,15 @@ fn a_2dof_record_with_new_input_combinations_in_its_test_half_is_identified() {
         .unwrap();
     let d = w[o].base_departure.as_ref().expect("a departure");
     assert!(d.departure > 90.0, "{d:?}");
-    let by = d
-        .replaced_by
-        .as_ref()
-        .expect("a member within the consensus");
-    let member = base.outputs[o]
-        .alternatives
-        .iter()
-        .find(|a| &a.name() == by)
-        .unwrap();
-    let mut as_member = m.clone();
-    let spec = as_member.base.as_mut().unwrap().plant.as_mut().unwrap();
-    spec.outputs[o] = member.output.clone();
-    as_member.base.as_mut().unwrap().outputs[o]
-        .alternatives
-        .clear();
-    let r = as_member
-        .predict_after(Some(&train), &test, Mode::FreeRun)
-        .unwrap();
-    assert_eq!(w[o].values, r[o].values);
+    assert!(d.to_string().contains("extrapolation"), "{d}");
+    let moved = rms(&w[o].values, &p[o].values) / std;
+    assert!(
+        moved < 0.1,
+        "the median moved by {moved} standard deviations"
+    );
     let y = &test.outputs[o].values;
     let r2 = hystbench::metrics::scores(y, &w[o].values).r2.unwrap();
-    assert!(r2 >= 0.95, "the member's free-run test R^2 {r2}");
+    assert!(r2 >= 0.95, "the committee's free-run test R^2 {r2}");
     // a damaged base is refused with its name
     let mut v: serde_json::Value = serde_json::from_str(&m.to_json()).unwrap();
     v["model"]["base"]["plant"]["outputs"][0]["dynamics"] =

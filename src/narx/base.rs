@@ -38,7 +38,7 @@
 
 use super::band::{Band, BAND_LEVEL};
 use super::config::{NarxConfig, Protocol};
-use super::consensus::{departures, replacement, Alternative, Departure, Verdict};
+use super::consensus::{committee_median, departure, Alternative, Departure};
 use super::fit::PROBE_TAIL;
 use super::model::{FittedNarx, Mode, OutputModel};
 use super::NarxError;
@@ -241,6 +241,18 @@ fn refit_picked(
     }
 }
 
+/// A short record's candidate `g` of list `list` refitted on the whole record `train` with the
+/// plays, ridge and stages it was cross-validated with (`None`: the fit failed).
+fn refit_whole(train: &IoRecord, list: &str, g: &FittedGreyBox) -> Option<FittedGreyBox> {
+    let mut c = list_config(train, list, train.len())?;
+    c.options.plays = g.fit.plays;
+    c.options.ridge = g.config.options.ridge;
+    c.options.output_map = g.config.options.output_map;
+    c.options.envelope_split = g.config.options.envelope_split;
+    c.options.adapt_plays = false;
+    c.fit(train).ok()
+}
+
 /// Whether a list's hysteresis is the Bouc-Wen operator alone (one coefficient a path beside
 /// its gain: nothing for a ridge to shrink).
 fn bouc_wen_only(list: &str) -> bool {
@@ -296,7 +308,7 @@ pub struct BaseChoice {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub network_alone: Option<OutputModel>,
     /// On a short record's output on the grey-box alone: its committee, in the cross-validation's
-    /// order of preference, that its predictions are checked against ([`super::consensus`]).
+    /// order of preference, whose pointwise median with it predicts ([`super::consensus`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub alternatives: Vec<Alternative>,
 }
@@ -353,67 +365,74 @@ impl GreyBoxBase {
         run(&plant, history, rec).map(Some)
     }
 
-    /// The consensus check of output `o` ([`super::consensus`]), whose base predicted `chosen`
-    /// over `rec` (after `history`), in units of `std` (the training output's): `None` when it
-    /// has no committee or stays within its consensus.
-    pub fn consensus(
+    /// The plants of output `o`'s committee ([`BaseChoice::alternatives`], in order): the base
+    /// plant with output `o`'s chain replaced by the member's. A damaged member is an error
+    /// naming it and `path`.
+    pub fn committee_plants(&self, o: usize, path: &Path) -> Result<Vec<Plant>, NarxError> {
+        let (Some(spec), Some(choice)) = (&self.plant, self.outputs.get(o)) else {
+            return Ok(Vec::new());
+        };
+        choice
+            .alternatives
+            .iter()
+            .map(|a| {
+                let mut s = spec.clone();
+                s.outputs[o] = a.output.clone();
+                s.check(path).map_err(|e| NarxError::Damaged {
+                    path: path.to_path_buf(),
+                    why: format!(
+                        "the grey-box committee member `{}` of output {o}: {e}",
+                        a.name()
+                    ),
+                })
+            })
+            .collect()
+    }
+
+    /// The prediction of output `o` over `rec` (after `history`), whose base ran `chosen`:
+    /// the pointwise median of `chosen` and its committee's runs ([`super::consensus`]), and
+    /// the departure of `chosen` from it when it passes [`super::consensus::CONSENSUS_DEPARTURE`]
+    /// standard deviations `std` (the training output's). Without a committee, `chosen`.
+    pub fn committee(
         &self,
         o: usize,
         chosen: &[f64],
         std: f64,
         history: Option<&IoRecord>,
         rec: &IoRecord,
-    ) -> Result<Option<Verdict>, NarxError> {
-        let (Some(spec), Some(choice)) = (&self.plant, self.outputs.get(o)) else {
-            return Ok(None);
+    ) -> Result<(Vec<f64>, Option<Departure>), NarxError> {
+        let (Some(_), Some(choice)) = (&self.plant, self.outputs.get(o)) else {
+            return Ok((chosen.to_vec(), None));
         };
         if choice.alternatives.is_empty() {
-            return Ok(None);
+            return Ok((chosen.to_vec(), None));
         }
-        let runs: Vec<Option<Vec<f64>>> = choice
-            .alternatives
+        let runs: Vec<Option<Vec<f64>>> = self
+            .committee_plants(o, &rec.path)?
             .iter()
-            .map(|a| {
-                let mut s = spec.clone();
-                s.outputs[o] = a.output.clone();
-                let plant = s.check(&rec.path).map_err(|e| NarxError::Damaged {
-                    path: rec.path.clone(),
-                    why: format!(
-                        "the grey-box committee member `{}` of output {o}: {e}",
-                        a.name()
-                    ),
-                })?;
-                // (a member that cannot be run takes no part)
-                Ok(run(&plant, history, rec).ok().map(|mut y| y.swap_remove(o)))
-            })
-            .collect::<Result<_, NarxError>>()?;
+            // (a member that cannot be run takes no part)
+            .map(|plant| run(plant, history, rec).ok().map(|mut y| y.swap_remove(o)))
+            .collect();
         let all: Vec<Option<&[f64]>> = std::iter::once(Some(chosen))
             .chain(runs.iter().map(Option::as_deref))
             .collect();
-        let d = departures(&all, std);
+        let median = committee_median(&all);
+        let d = departure(chosen, &median, std);
         if std::env::var_os("HYSTBENCH_TRACE").is_some() {
             eprintln!(
-                "consensus {}: {} samples, departure {:?}, committee {:?}",
+                "committee {}: {} samples, {} members, departure {d:?}",
                 choice.name,
                 chosen.len(),
-                d[0],
-                &d[1..]
+                runs.len()
             );
         }
-        let Some(by) = replacement(&d) else {
-            return Ok(None);
-        };
-        let departure = Departure {
-            chosen: choice.effects.clone(),
-            departure: d[0].unwrap_or(f64::NAN),
-            replaced_by: by.map(|i| choice.alternatives[i - 1].name()),
-            replacement_departure: by.and_then(|i| d[i]),
-        };
-        let instead = by.and_then(|i| {
-            let values = runs[i - 1].clone()?;
-            Some((values, choice.alternatives[i - 1].band.clone()))
-        });
-        Ok(Some(Verdict { departure, instead }))
+        let reported = d
+            .filter(|&d| d > super::consensus::CONSENSUS_DEPARTURE)
+            .map(|departure| Departure {
+                chosen: choice.effects.clone(),
+                departure,
+            });
+        Ok((median, reported))
     }
 }
 
@@ -996,45 +1015,77 @@ impl NarxConfig {
             });
             return Ok(m);
         }
-        for &o in &chosen {
-            let y = &train.outputs[o].values;
-            m.outputs[o].band = base_band(y, &sim[o], &networks[o], n_fit, short);
-            m.outputs[o].band_members.clear();
-            // on a short record, the committee its predictions are checked against
-            // ([`super::consensus`]): the other candidates that the choice found comparable
-            // (cross-validated MSE within `MEAN_ERROR_RATIO` of the lowest), each one's fit
-            // without the last block, in the order of preference; then its own fits without
-            // each block
-            if short {
+        // on a short record, each chosen output's committee ([`super::consensus`]): the other
+        // candidates that the choice found comparable (cross-validated MSE within
+        // `MEAN_ERROR_RATIO` of the lowest), in the order of preference, each refitted on the
+        // whole record as the chosen one is
+        let committees: Vec<Vec<usize>> = (0..choices.len())
+            .map(|o| {
+                if !short || !chosen.contains(&o) {
+                    return Vec::new();
+                }
                 let challengers: Vec<bool> = cands.iter().map(|c| c.envelope_split).collect();
                 let errs = &judged_errors[o];
                 let lowest = errs.iter().filter_map(mse).fold(f64::INFINITY, f64::min);
-                let order: Vec<usize> = preference(errs, &challengers, picks[o])
+                preference(errs, &challengers, picks[o])
                     .into_iter()
                     .enumerate()
                     .filter(|&(k, i)| {
-                        k == 0 || mse(&errs[i]).is_some_and(|m| m <= MEAN_ERROR_RATIO * lowest)
+                        k > 0 && mse(&errs[i]).is_some_and(|m| m <= MEAN_ERROR_RATIO * lowest)
                     })
                     .map(|(_, i)| i)
-                    .collect();
-                // (the chosen candidate's own fits carry its band: `sim[o]` is its run)
+                    .collect()
+            })
+            .collect();
+        let mut wanted: Vec<usize> = committees.iter().flatten().copied().collect();
+        wanted.sort_unstable();
+        wanted.dedup();
+        let mut whole: Vec<Option<FittedGreyBox>> = vec![None; cands.len()];
+        let refits: Vec<Option<FittedGreyBox>> = wanted
+            .par_iter()
+            .map(|&i| refit_whole(train, cands[i].list, &cands[i].model))
+            .collect();
+        for (i, r) in wanted.into_iter().zip(refits) {
+            whole[i] = r;
+        }
+        for &o in &chosen {
+            let y = &train.outputs[o].values;
+            // the output predicts its committee's median: its band is calibrated on the median
+            // of their cross-validated runs (the chosen candidate's stands for its own fits)
+            let members: Vec<Option<&[f64]>> = std::iter::once(picks[o])
+                .chain(committees[o].iter().copied())
+                .map(|i| Some(cands[i].sim[o].as_slice()))
+                .collect();
+            let median = committee_median(&members);
+            m.outputs[o].band = base_band(y, &median, &networks[o], n_fit, short);
+            m.outputs[o].band_members.clear();
+            // on a short record, the committee whose median with it predicts
+            // ([`super::consensus`]): the other candidates refitted, then its own fits without
+            // each block
+            if short {
                 let c = &cands[picks[o]];
-                let own_band = m.outputs[o].band.clone();
-                choices[o].alternatives = order[1..]
+                choices[o].alternatives = committees[o]
                     .iter()
                     .map(|&i| Alternative {
                         effects: cands[i].effects(),
                         ridge: cands[i].model.config.options.ridge,
                         fold: None,
-                        output: cands[i].model.plant.spec.outputs[o].clone(),
-                        band: base_band(y, &cands[i].sim[o], &networks[o], n_fit, short),
+                        // (its fit without the last block where the refit failed)
+                        output: whole[i]
+                            .as_ref()
+                            .unwrap_or(&cands[i].model)
+                            .plant
+                            .spec
+                            .outputs[o]
+                            .clone(),
+                        band: None,
                     })
                     .chain(c.folds.iter().enumerate().map(|(k, f)| Alternative {
                         effects: c.effects(),
                         ridge: c.model.config.options.ridge,
                         fold: Some(k),
                         output: f.plant.spec.outputs[o].clone(),
-                        band: own_band.clone(),
+                        band: None,
                     }))
                     .collect();
             }
@@ -1054,14 +1105,7 @@ impl NarxConfig {
                 if outputs.is_empty() {
                     continue;
                 }
-                let full = list_config(train, lists[i], n).and_then(|mut c| {
-                    c.options.plays = g.fit.plays;
-                    c.options.ridge = g.config.options.ridge;
-                    c.options.output_map = g.config.options.output_map;
-                    c.options.envelope_split = g.config.options.envelope_split;
-                    c.options.adapt_plays = false;
-                    c.fit(train).ok()
-                });
+                let full = whole[i].take().or_else(|| refit_whole(train, lists[i], g));
                 let kept = lowest_error_fits(train, &outputs, full.iter().chain(&folds[i]));
                 for (o, chain) in outputs.into_iter().zip(kept) {
                     refitted[o] = chain;

@@ -17,7 +17,7 @@
 //! - [`state`]: a fitted model stepped one sample at a time (for the compensator);
 //! - [`base`]: the grey-box base candidate (a grey-box model alone or under a network on its
 //!   residual, chosen per output on the training record's validation part);
-//! - [`consensus`]: a short record's base checked against its committee at every prediction;
+//! - [`consensus`]: a short record's base predicts its committee's median at every prediction;
 //! - [`synthetic`]: records of known plants from the effect library, for tests and benches.
 //!
 //! ## References

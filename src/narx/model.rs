@@ -207,8 +207,8 @@ pub struct OutputPrediction {
     /// Half-width of the prediction band at each sample (physical units; a free run of a model
     /// with a calibrated band, [`super::band`]), else `None`.
     pub half_width: Option<Vec<f64>>,
-    /// On an output on the grey-box alone that departed from its committee's consensus on this
-    /// record ([`super::consensus`]): by how much, and which member predicted instead.
+    /// On an output on the grey-box alone whose chosen base departed from its committee's median
+    /// (which predicts) on this record ([`super::consensus`]): by how much.
     pub base_departure: Option<super::consensus::Departure>,
 }
 
@@ -412,18 +412,13 @@ impl FittedNarx {
                     }
                 }
                 super::base::BaseUse::Base => {
-                    // a base that leaves its committee's consensus on this record gives way to
-                    // the first member within it, with that member's band
+                    // the base predicts its committee's median, and says where its own run
+                    // departs from it
                     let std = self.outputs[o].scaling.std;
-                    let mut band = self.outputs[o].band.as_ref();
-                    let consensus = base.consensus(o, &g[o], std, history, rec)?;
-                    if let Some(v) = &consensus {
-                        if let Some((values, b)) = &v.instead {
-                            g[o].clone_from(values);
-                            band = b.as_ref();
-                        }
-                        p.base_departure = Some(v.departure.clone());
-                    }
+                    let band = self.outputs[o].band.as_ref();
+                    let (median, departure) = base.committee(o, &g[o], std, history, rec)?;
+                    g[o] = median;
+                    p.base_departure = departure;
                     // the output's network ran on the measured output: its free run is the
                     // second opinion whose disagreement with the base widens the band
                     let net = std::mem::replace(&mut p.values, g[o].clone());
@@ -790,8 +785,8 @@ pub struct OutputEvaluation {
     /// Ensemble members whose test free run diverged (left out of the combination).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub diverged_members_test: Vec<usize>,
-    /// Where the output's grey-box base departed from its committee's consensus on the test
-    /// record ([`super::consensus`]).
+    /// Where the output's chosen grey-box base departed from its committee's median on the
+    /// test record ([`super::consensus`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base_departure_test: Option<super::consensus::Departure>,
 }

@@ -7,9 +7,13 @@
 //! model keeps one state per phase, and a grey-box base is stepped beside it
 //! ([`crate::plant::PlantState`]).
 //!
-//! One difference, by necessity: the free run of a record leaves an ensemble member that
-//! diverges anywhere out of the whole record, while a stepped model can only leave it out
-//! from the sample where it diverges on. Both agree whenever no member diverges.
+//! An output of a short record on the grey-box base alone steps its committee beside it and
+//! answers their median ([`super::consensus`]).
+//!
+//! One difference, by necessity: the free run of a record leaves an ensemble member (or a
+//! committee member) that diverges anywhere out of the whole record, while a stepped model can
+//! only leave it out from the sample where it diverges on. Both agree whenever no member
+//! diverges.
 
 use super::base::BaseUse;
 use super::config::Combine;
@@ -78,7 +82,47 @@ pub struct NarxState {
     k: usize,
     base: Option<PlantState>,
     g: Vec<f64>,
+    /// Per output, its committee's plants and whether each still runs (finite so far); the
+    /// base's own run first ([`Committee`]).
+    committees: Vec<Committee>,
     scratch: Scratch,
+}
+
+/// An output's grey-box committee, stepped beside the base: the output answers the median of
+/// the base's run and the members' that still run (`narx::consensus::committee_median`).
+#[derive(Clone, Default)]
+struct Committee {
+    members: Vec<PlantState>,
+    /// The base's run first, then each member's.
+    alive: Vec<bool>,
+    /// A member's outputs (every output of its plant) at this sample.
+    out: Vec<f64>,
+    column: Vec<f64>,
+}
+
+impl Committee {
+    /// Output `o`'s value at this sample, from the base's `g` and its members stepped on `u`.
+    fn step(&mut self, o: usize, u: &[f64], g: f64) -> f64 {
+        if self.members.is_empty() {
+            return g;
+        }
+        self.column.clear();
+        let at = |alive: &mut bool, v: f64, column: &mut Vec<f64>| {
+            *alive &= v.is_finite();
+            if *alive {
+                column.push(v);
+            }
+        };
+        at(&mut self.alive[0], g, &mut self.column);
+        for (m, alive) in self.members.iter_mut().zip(&mut self.alive[1..]) {
+            m.step(u, &mut self.out);
+            at(alive, self.out[o], &mut self.column);
+        }
+        if self.column.is_empty() {
+            return g;
+        }
+        super::consensus::median(&mut self.column)
+    }
 }
 
 impl FittedNarx {
@@ -97,6 +141,26 @@ impl FittedNarx {
             },
             _ => None,
         };
+        // the committees of the outputs on the base alone (a member that cannot be stepped
+        // takes no part, as one that cannot be run in the free run)
+        let committees: Vec<Committee> = (0..self.outputs.len())
+            .map(|o| match &self.base {
+                Some(b) if base.is_some() && b.uses(o) == BaseUse::Base => {
+                    let members: Vec<PlantState> = b
+                        .committee_plants(o, path)?
+                        .iter()
+                        .filter_map(|p| p.state(ts).ok().flatten())
+                        .collect();
+                    Ok(Committee {
+                        alive: vec![true; members.len() + 1],
+                        members,
+                        out: vec![0.0; self.outputs.len()],
+                        column: Vec::new(),
+                    })
+                }
+                _ => Ok(Committee::default()),
+            })
+            .collect::<Result<_, NarxError>>()?;
         let uses = |o: usize| match &self.base {
             Some(b) if base.is_some() => b.uses(o),
             _ => BaseUse::Network,
@@ -185,6 +249,7 @@ impl FittedNarx {
             k: 0,
             base,
             g: vec![0.0; no],
+            committees,
             scratch: Scratch {
                 work,
                 x: vec![0.0; width],
@@ -220,6 +285,9 @@ impl NarxState {
     pub fn step(&mut self, u: &[f64], y: &mut [f64]) {
         if let Some(b) = self.base.as_mut() {
             b.step(u, &mut self.g);
+            for (o, c) in self.committees.iter_mut().enumerate() {
+                self.g[o] = c.step(o, u, self.g[o]);
+            }
         }
         let s = self.shared.decimation;
         advance(
