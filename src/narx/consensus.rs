@@ -10,8 +10,10 @@
 //!
 //! So each output predicted by the grey-box alone keeps that committee ([`Alternative`]: the
 //! other candidates within `metrics::MEAN_ERROR_RATIO` of the lowest cross-validated error,
-//! each refitted on the whole record as the chosen one is, in the cross-validation's order of
-//! preference, then the chosen candidate's own fits without each block).
+//! each refitted on the whole record (their fit without the last block where the refit fails),
+//! in the cross-validation's order of preference, then the chosen candidate's own fits without
+//! each block). The chosen run is the better over the record of its refit and those fits, so
+//! where one of those fits is chosen it votes twice.
 //! At every prediction they run beside it over the same inputs, and the output predicts their
 //! pointwise median with the chosen base's run ([`committee_median`]). When the chosen base's
 //! own run lies further than [`CONSENSUS_DEPARTURE`] standard deviations of the training
@@ -45,8 +47,8 @@ use crate::plant::OutputSpec;
 use serde::{Deserialize, Serialize};
 
 /// The RMS distance from the committee's pointwise median (in standard deviations of the
-/// training output) beyond which the chosen base is replaced: a departure as large as the
-/// output's own variation is no longer a matter of detail.
+/// training output) beyond which the chosen base's departure is reported: a departure as large
+/// as the output's own variation is no longer a matter of detail.
 pub const CONSENSUS_DEPARTURE: f64 = 1.0;
 
 /// A member of an output's committee: one output's chain of another candidate, or of the chosen
@@ -61,7 +63,7 @@ pub struct Alternative {
     /// For the chosen candidate's own cross-validation fits: the block it was fitted without.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fold: Option<usize>,
-    /// The output's chain (it replaces the base plant's output when it predicts).
+    /// The output's chain (in place of the base plant's output, it gives the member's run).
     pub output: OutputSpec,
     /// The band with which a member that replaced a departing base predicted, in files written
     /// before the committee's median predicted: read, not written, not used.
