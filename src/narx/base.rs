@@ -401,12 +401,10 @@ impl GreyBoxBase {
         history: Option<&IoRecord>,
         rec: &IoRecord,
     ) -> Result<(Vec<f64>, Option<Departure>), NarxError> {
-        let (Some(_), Some(choice)) = (&self.plant, self.outputs.get(o)) else {
+        let with_committee = |c: &&BaseChoice| self.plant.is_some() && !c.alternatives.is_empty();
+        let Some(choice) = self.outputs.get(o).filter(with_committee) else {
             return Ok((chosen.to_vec(), None));
         };
-        if choice.alternatives.is_empty() {
-            return Ok((chosen.to_vec(), None));
-        }
         let runs: Vec<Option<Vec<f64>>> = self
             .committee_plants(o, &rec.path)?
             .iter()
@@ -1019,12 +1017,12 @@ impl NarxConfig {
         // candidates that the choice found comparable (cross-validated MSE within
         // `MEAN_ERROR_RATIO` of the lowest), in the order of preference, each refitted on the
         // whole record as the chosen one is
+        let challengers: Vec<bool> = cands.iter().map(|c| c.envelope_split).collect();
         let committees: Vec<Vec<usize>> = (0..choices.len())
             .map(|o| {
                 if !short || !chosen.contains(&o) {
                     return Vec::new();
                 }
-                let challengers: Vec<bool> = cands.iter().map(|c| c.envelope_split).collect();
                 let errs = &judged_errors[o];
                 let lowest = errs.iter().filter_map(mse).fold(f64::INFINITY, f64::min);
                 preference(errs, &challengers, picks[o])

@@ -141,11 +141,15 @@ impl FittedNarx {
             },
             _ => None,
         };
+        let uses = |o: usize| match &self.base {
+            Some(b) if base.is_some() => b.uses(o),
+            _ => BaseUse::Network,
+        };
         // the committees of the outputs on the base alone (a member that cannot be stepped
         // takes no part, as one that cannot be run in the free run)
         let committees: Vec<Committee> = (0..self.outputs.len())
             .map(|o| match &self.base {
-                Some(b) if base.is_some() && b.uses(o) == BaseUse::Base => {
+                Some(b) if uses(o) == BaseUse::Base => {
                     let members: Vec<PlantState> = b
                         .committee_plants(o, path)?
                         .iter()
@@ -161,10 +165,6 @@ impl FittedNarx {
                 _ => Ok(Committee::default()),
             })
             .collect::<Result<_, NarxError>>()?;
-        let uses = |o: usize| match &self.base {
-            Some(b) if base.is_some() => b.uses(o),
-            _ => BaseUse::Network,
-        };
         let mut first = 0;
         let outputs: Vec<OutputShared> = self
             .outputs
