@@ -66,28 +66,45 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         super::print(&serde_json::to_string_pretty(&v)?);
         return Ok(());
     }
-    let mut text = format!(
-        "{:<12} {:<22} {:<42} {:<12} {}\n",
-        "effect", "acts as", "fit operators", "NARX", "what it is"
-    );
+    // the columns as wide as their widest cell
+    let dash = |v: Vec<&str>| {
+        if v.is_empty() {
+            "-".to_string()
+        } else {
+            v.join(", ")
+        }
+    };
+    let mut rows = vec![[
+        "effect".to_string(),
+        "acts as".to_string(),
+        "fit operators".to_string(),
+        "NARX".to_string(),
+        "what it is".to_string(),
+    ]];
     for e in &list {
-        let ops: Vec<&str> = e.variants().iter().map(|v| v.name).collect();
-        let feats: Vec<&str> = e.feature_kinds().iter().map(|k| k.name).collect();
+        rows.push([
+            e.name().as_str().to_string(),
+            place(e.slot()).to_string(),
+            dash(e.variants().iter().map(|v| v.name).collect()),
+            dash(e.feature_kinds().iter().map(|k| k.name).collect()),
+            e.summary().to_string(),
+        ]);
+    }
+    let width = |c: usize| rows.iter().map(|r| r[c].chars().count()).max().unwrap_or(0);
+    let w = [width(0), width(1), width(2), width(3)];
+    let mut text = String::new();
+    for r in &rows {
         text += &format!(
-            "{:<12} {:<22} {:<42} {:<12} {}\n",
-            e.name().as_str(),
-            place(e.slot()),
-            if ops.is_empty() {
-                "-".to_string()
-            } else {
-                ops.join(", ")
-            },
-            if feats.is_empty() {
-                "-".to_string()
-            } else {
-                feats.join(", ")
-            },
-            e.summary()
+            "{:<w0$} {:<w1$} {:<w2$} {:<w3$} {}\n",
+            r[0],
+            r[1],
+            r[2],
+            r[3],
+            r[4],
+            w0 = w[0],
+            w1 = w[1],
+            w2 = w[2],
+            w3 = w[3]
         );
     }
     super::print(&text);
