@@ -1,6 +1,6 @@
 //! `hystbench effects`: the effect library's registry, as every command reads it.
 
-use hystbench::effect::{effects, Slot};
+use hystbench::effect::{effects, Effect, Slot};
 use serde_json::json;
 
 /// List the effects of the library: their names (for `fit --effects`, `identify --features`,
@@ -66,7 +66,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         super::print(&serde_json::to_string_pretty(&v)?);
         return Ok(());
     }
-    // the columns as wide as their widest cell
+    super::print(&table(&list));
+    Ok(())
+}
+
+/// The text table of `list`: one row per effect, each column but the last as wide as its
+/// widest cell.
+fn table(list: &[&'static dyn Effect]) -> String {
     let dash = |v: Vec<&str>| {
         if v.is_empty() {
             "-".to_string()
@@ -74,14 +80,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             v.join(", ")
         }
     };
-    let mut rows = vec![[
-        "effect".to_string(),
-        "acts as".to_string(),
-        "fit operators".to_string(),
-        "NARX".to_string(),
-        "what it is".to_string(),
-    ]];
-    for e in &list {
+    let mut rows =
+        vec![["effect", "acts as", "fit operators", "NARX", "what it is"].map(String::from)];
+    for e in list {
         rows.push([
             e.name().as_str().to_string(),
             place(e.slot()).to_string(),
@@ -90,23 +91,34 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             e.summary().to_string(),
         ]);
     }
-    let width = |c: usize| rows.iter().map(|r| r[c].chars().count()).max().unwrap_or(0);
-    let w = [width(0), width(1), width(2), width(3)];
+    let widths: Vec<usize> = (0..4)
+        .map(|c| rows.iter().map(|r| r[c].chars().count()).max().unwrap_or(0))
+        .collect();
     let mut text = String::new();
     for r in &rows {
-        text += &format!(
-            "{:<w0$} {:<w1$} {:<w2$} {:<w3$} {}\n",
-            r[0],
-            r[1],
-            r[2],
-            r[3],
-            r[4],
-            w0 = w[0],
-            w1 = w[1],
-            w2 = w[2],
-            w3 = w[3]
-        );
+        for (cell, w) in r.iter().zip(&widths) {
+            text += &format!("{cell:<w$} ");
+        }
+        text += &r[4];
+        text.push('\n');
     }
-    super::print(&text);
-    Ok(())
+    text
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every row's summary starts at the header's "what it is", whatever the cells' widths
+    /// (`sensor (after the offset)` was wider than its fixed column).
+    #[test]
+    fn the_summaries_line_up_under_their_header() {
+        let text = table(&effects());
+        let at = |line: &str, what: &str| line.find(what).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        let col = at(lines[0], "what it is");
+        for (line, e) in lines[1..].iter().zip(effects()) {
+            assert_eq!(at(line, e.summary()), col, "{line}");
+        }
+    }
 }

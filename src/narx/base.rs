@@ -1062,29 +1062,26 @@ impl NarxConfig {
             // each block
             if short {
                 let c = &cands[picks[o]];
+                let member = |c: &Candidate, fold, output: &crate::plant::OutputSpec| Alternative {
+                    effects: c.effects(),
+                    ridge: c.model.config.options.ridge,
+                    fold,
+                    output: output.clone(),
+                    band: None,
+                };
                 choices[o].alternatives = committees[o]
                     .iter()
-                    .map(|&i| Alternative {
-                        effects: cands[i].effects(),
-                        ridge: cands[i].model.config.options.ridge,
-                        fold: None,
-                        // (its fit without the last block where the refit failed)
-                        output: whole[i]
-                            .as_ref()
-                            .unwrap_or(&cands[i].model)
-                            .plant
-                            .spec
-                            .outputs[o]
-                            .clone(),
-                        band: None,
+                    // (its fit without the last block where the refit failed)
+                    .map(|&i| {
+                        let fit = whole[i].as_ref().unwrap_or(&cands[i].model);
+                        member(&cands[i], None, &fit.plant.spec.outputs[o])
                     })
-                    .chain(c.folds.iter().enumerate().map(|(k, f)| Alternative {
-                        effects: c.effects(),
-                        ridge: c.model.config.options.ridge,
-                        fold: Some(k),
-                        output: f.plant.spec.outputs[o].clone(),
-                        band: None,
-                    }))
+                    .chain(
+                        c.folds
+                            .iter()
+                            .enumerate()
+                            .map(|(k, f)| member(c, Some(k), &f.plant.spec.outputs[o])),
+                    )
                     .collect();
             }
         }
