@@ -247,6 +247,10 @@ fn identify_reports_the_grey_box_choice_and_can_leave_it_out() {
 /// Kuhnen's asymmetric loop (the shipped plant's dead zones squash the top of the loop; its
 /// mode left out): the base keeps the grey-box fit's second stage, chosen beside the first
 /// stage on the validation part, and the free run follows the test half.
+///
+/// When the base's run leaves the finite range (a valid model file edited by hand, on inputs
+/// 1e300 times larger), the prediction is reported as diverged (no values, no band, no
+/// score), and `predict` says so and writes nothing; it does not call the model damaged.
 #[test]
 fn an_asymmetric_loop_is_identified_with_its_output_map() {
     let plant = quasi_static("prandtl_ishlinskii_asymmetric.json");
@@ -257,7 +261,62 @@ fn an_asymmetric_loop_is_identified_with_its_output_map() {
         {"sine": {"amplitude": 12.0, "frequency_hz": 3.1}}]}]}"#,
         0.005,
     );
-    assert_identified_with(&rec, "+ output map");
+    let (m, mut test, r2) = identify_first_half(&rec);
+    let base = m.base.as_ref().expect("the grey-box base was tried");
+    assert!(
+        base.outputs[0].effects.ends_with("+ output map"),
+        "{base:?}"
+    );
+    assert_eq!(base.uses(0), BaseUse::Base, "{base:?}");
+    assert!(r2[0] >= 0.999, "free-run test R^2 {}", r2[0]);
+
+    // a user's edit of the model file that stays valid (the base's modes 1e12 times stiffer in
+    // gain) and inputs 1e300 times larger: the base's run overflows
+    let mut v: serde_json::Value = serde_json::from_str(&m.to_json()).unwrap();
+    let mut edited = 0;
+    for path in v["model"]["base"]["plant"]["outputs"][0]["paths"]
+        .as_array_mut()
+        .unwrap()
+    {
+        if let Some(g) = path.pointer_mut("/dynamics/dc_gain") {
+            *g = (g.as_f64().unwrap() * 1e12).into();
+            edited += 1;
+        }
+    }
+    assert!(edited > 0, "the base has modes on its paths");
+    for u in test.inputs[0].values.iter_mut() {
+        *u *= 1e300;
+    }
+    let t = tempfile::tempdir().unwrap();
+    let (model, data, out) = (
+        t.path().join("m.json"),
+        t.path().join("far.csv"),
+        t.path().join("p.csv"),
+    );
+    std::fs::write(&model, v.to_string()).unwrap();
+    let m = FittedNarx::load(&model).unwrap();
+    let p = m.predict(&test, Mode::FreeRun).unwrap();
+    assert!(p[0].diverged_at.is_some(), "{:?}", p[0].diverged_at);
+    assert!(p[0].values.is_empty() && p[0].half_width.is_none());
+    assert!(p[0].scores(&test.outputs[0].values).is_none());
+
+    let (names, cols) = test.to_columns();
+    hystbench::data::write_csv_atomic(&data, &names, &cols, false).unwrap();
+    let o = common::hystbench(&[
+        "predict",
+        "--model",
+        common::s(&model),
+        "--data",
+        common::s(&data),
+        "--out",
+        common::s(&out),
+    ]);
+    let err = common::stderr(&o);
+    assert!(
+        !o.status.success() && err.contains("diverged at sample"),
+        "{err}"
+    );
+    assert!(!out.exists(), "nothing written");
 }
 
 /// A Prandtl-Ishlinskii loop squashed by dead zones, with creep and a term in the input's rate

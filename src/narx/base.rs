@@ -45,7 +45,7 @@ use super::NarxError;
 use crate::data::IoRecord;
 use crate::graybox::{FittedGreyBox, GreyBoxConfig, CV_FOLDS, RIDGES};
 use crate::metrics::{lowest_geometric_mean_error, significantly_lower_error, MEAN_ERROR_RATIO};
-use crate::plant::{Plant, PlantSpec};
+use crate::plant::{Plant, PlantError, PlantSpec};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -353,12 +353,13 @@ impl GreyBoxBase {
     }
 
     /// The base's outputs over `rec` (one per output of the model, in order), run from rest
-    /// through `history` first when `rec` continues it.
+    /// through `history` first when `rec` continues it; an output whose run left the finite
+    /// range is `Err(sample)` (of `rec`; 0 when it did so in `history`).
     pub fn simulate(
         &self,
         history: Option<&IoRecord>,
         rec: &IoRecord,
-    ) -> Result<Option<Vec<Vec<f64>>>, NarxError> {
+    ) -> Result<Option<Vec<BaseRun>>, NarxError> {
         let Some(plant) = self.plant(&rec.path)? else {
             return Ok(None);
         };
@@ -409,7 +410,7 @@ impl GreyBoxBase {
             .committee_plants(o, &rec.path)?
             .iter()
             // (a member that cannot be run takes no part)
-            .map(|plant| run(plant, history, rec).ok().map(|mut y| y.swap_remove(o)))
+            .map(|plant| run(plant, history, rec).ok()?.swap_remove(o).ok())
             .collect();
         let all: Vec<Option<&[f64]>> = std::iter::once(Some(chosen))
             .chain(runs.iter().map(Option::as_deref))
@@ -434,13 +435,17 @@ impl GreyBoxBase {
     }
 }
 
+/// One output's run of a base over a record: its values, or the sample at which it left the
+/// finite range (the run diverged: a base fitted on one record, run on inputs far outside it).
+pub type BaseRun = Result<Vec<f64>, usize>;
+
 /// A plant's outputs over `rec`, run from rest through `history` first when `rec` continues
-/// it (the samples of `rec` only).
+/// it (the samples of `rec` only; a diverged output's sample counted from `rec`'s start).
 fn run(
     plant: &Plant,
     history: Option<&IoRecord>,
     rec: &IoRecord,
-) -> Result<Vec<Vec<f64>>, NarxError> {
+) -> Result<Vec<BaseRun>, NarxError> {
     let skip = history.map_or(0, IoRecord::len);
     let inputs: Vec<Vec<f64>> = rec
         .inputs
@@ -453,13 +458,20 @@ fn run(
         })
         .collect();
     let refs: Vec<&[f64]> = inputs.iter().map(Vec::as_slice).collect();
-    let y = plant
-        .simulate(&refs, rec.ts)
-        .map_err(|e| NarxError::Damaged {
-            path: rec.path.clone(),
-            why: format!("its grey-box base cannot be simulated: {e}"),
-        })?;
-    Ok(y.into_iter().map(|v| v[skip..].to_vec()).collect())
+    let damaged = |e: PlantError| NarxError::Damaged {
+        path: rec.path.clone(),
+        why: format!("its grey-box base cannot be simulated: {e}"),
+    };
+    plant
+        .simulate_each(&refs, rec.ts)
+        .map_err(damaged)?
+        .into_iter()
+        .map(|y| match y {
+            Ok(v) => Ok(Ok(v[skip..].to_vec())),
+            Err(PlantError::Diverged { sample, .. }) => Ok(Err(sample.saturating_sub(skip))),
+            Err(e) => Err(damaged(e)),
+        })
+        .collect()
 }
 
 /// Samples per parameter the base asks of the record: half the grey-box fit's default, since

@@ -338,9 +338,12 @@ impl FittedNarx {
             }
         }
         self.check_record(rec)?;
-        let Some(mut g) = base.simulate(history, rec)? else {
+        let Some(runs) = base.simulate(history, rec)? else {
             return self.predict_sampled(rec, mode);
         };
+        // where a base's run diverged (`Err(sample)`), so does every prediction that needs it
+        let base_diverged: Vec<Option<usize>> = runs.iter().map(|r| r.clone().err()).collect();
+        let mut g: Vec<Vec<f64>> = runs.into_iter().map(Result::unwrap_or_default).collect();
         // the networks see the residual of the outputs that have a base
         let mut resid = rec.clone();
         for s in resid.outputs.iter_mut() {
@@ -356,7 +359,20 @@ impl FittedNarx {
         let alone = self.networks_alone(base, rec, mode)?;
         for (o, p) in preds.iter_mut().enumerate() {
             let members = self.outputs[o].ensemble.len() + 1;
+            let diverged = base_diverged.get(o).copied().flatten();
             match base.uses(o) {
+                // the base that would stand in for an unstable network diverged too: the
+                // network's own prediction stands (diverged only when every member did)
+                super::base::BaseUse::Network if diverged.is_some() => {}
+                super::base::BaseUse::Base | super::base::BaseUse::BaseAndNetwork
+                    if diverged.is_some() =>
+                {
+                    // the base's run left the finite range: the prediction diverged with it
+                    p.values.clear();
+                    p.diverged_at = diverged;
+                    p.half_width = None;
+                    p.base_departure = None;
+                }
                 super::base::BaseUse::Network
                     if p.diverged_at.is_some() || 2 * p.diverged_members.len() > members =>
                 {
