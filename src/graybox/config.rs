@@ -54,6 +54,12 @@ pub struct FitOptions {
     /// ([`FitOptions::starts_part`]), or as many samples in blocks spread over it where no
     /// first part shows the whole, the best refined on the whole ([`STARTS_ROWS`]).
     pub starts_rows: usize,
+    /// Per output, the first-stage parameters of a fit of the same model on fewer samples
+    /// ([`super::FittedGreyBox::first_stages`]): each output's first stage is refined from them
+    /// (Levenberg-Marquardt, creep held fixed and then every parameter free) instead of being
+    /// fitted from the grid of starts; an output whose parameters do not fit its problem
+    /// (another number of creep time constants, say) is fitted from the starts. Empty: none.
+    pub refine_from: Vec<super::FirstStageParams>,
 }
 
 /// The default [`FitOptions::starts_rows`]. The starts of a fit (a grid's best points, the
@@ -90,6 +96,7 @@ impl Default for FitOptions {
             parsimonious_creep: true,
             samples_per_parameter: 10,
             starts_rows: STARTS_ROWS,
+            refine_from: Vec::new(),
         }
     }
 }

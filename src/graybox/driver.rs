@@ -3,7 +3,7 @@
 
 use super::config::{FitOptions, CV_FOLDS, FEWER_PLAYS, RIDGES};
 use super::fit::{levenberg_marquardt, Chosen, LmResult, OutputProblem, OutputStructure, Rows};
-use super::{FitSummary, FittedGreyBox, GreyBoxConfig, GreyBoxError, OutputFit};
+use super::{FirstStageParams, FitSummary, FittedGreyBox, GreyBoxConfig, GreyBoxError, OutputFit};
 use crate::data::IoRecord;
 use crate::effect::fitting::{PreviousPath, RecordError, RecordView, SECOND_STAGE_PARAM};
 use crate::effect::hysteresis::SPLIT_PARAMS;
@@ -250,23 +250,34 @@ fn refine_on_whole(
             (start, best) = (th, c);
         }
     }
-    let stage1 = prob.first_stage();
-    let mut iterations = part.iterations;
-    let mut res = levenberg_marquardt(prob, start, &stage1, options)?;
-    if stage1.iter().any(|f| !f) {
-        iterations += res.iterations;
-        let all = vec![true; prob.n_theta()];
-        res = levenberg_marquardt(prob, res.theta, &all, options)?;
-    }
+    let mut res = refine(prob, start, options)?;
     if trace {
         eprintln!(
             "on the whole record: cost {best:.6e} -> {:.6e}, {} iterations, {:.2} s",
             res.eval.cost,
-            iterations + res.iterations - part.iterations,
+            res.iterations,
             t.elapsed().as_secs_f64()
         );
     }
-    res.iterations += iterations;
+    res.iterations += part.iterations;
+    Ok(res)
+}
+
+/// Parameters `start` refined on `prob` in two Levenberg-Marquardt stages: creep held fixed,
+/// then every parameter free (the iterations of both counted).
+fn refine(
+    prob: &OutputProblem,
+    start: Vec<f64>,
+    options: &super::FitOptions,
+) -> Result<LmResult, GreyBoxError> {
+    let stage1 = prob.first_stage();
+    let mut res = levenberg_marquardt(prob, start, &stage1, options)?;
+    if stage1.iter().any(|f| !f) {
+        let iterations = res.iterations;
+        let all = vec![true; prob.n_theta()];
+        res = levenberg_marquardt(prob, res.theta, &all, options)?;
+        res.iterations += iterations;
+    }
     Ok(res)
 }
 
@@ -324,6 +335,8 @@ struct StagedOutput {
     spec: crate::plant::OutputSpec,
     run: LmResult,
     first_stage: Option<crate::plant::OutputSpec>,
+    /// The first stage's parameters ([`FittedGreyBox::first_stages`]).
+    first_params: FirstStageParams,
 }
 
 /// A fitted first stage's parameters and the names of its terms' parameters
@@ -748,6 +761,8 @@ impl GreyBoxConfig {
                     .map(|f| f.first_stage.clone().unwrap_or_else(|| f.spec.clone()))
                     .collect()
             });
+        let first_stages: Vec<FirstStageParams> =
+            fitted.iter().map(|f| f.first_params.clone()).collect();
         let (outputs, runs): (Vec<_>, Vec<_>) = fitted.into_iter().map(|f| (f.spec, f.run)).unzip();
         let spec = PlantSpec {
             name: "greybox".into(),
@@ -790,6 +805,7 @@ impl GreyBoxConfig {
                 scored_on: String::new(),
                 plays: self.options.plays,
             },
+            first_stages,
         };
         model.score(rec, n_train, &runs)?;
         model.fit.seconds = start.elapsed().as_secs_f64();
@@ -893,7 +909,7 @@ impl GreyBoxConfig {
         classical: Option<&FirstStage>,
     ) -> Result<(StagedOutput, FirstStage), GreyBoxError> {
         let out = &train.outputs[o];
-        let mut st = self.structure(train, o)?;
+        let st = self.structure(train, o)?;
         let t0 = Instant::now();
         let n = out.values.len();
         // the whole record's part, judged once for every fit below: its first part, else
@@ -986,17 +1002,43 @@ impl GreyBoxConfig {
             res.iterations += iterations;
             Ok::<_, GreyBoxError>(res)
         };
-        let mut prob = problem(&st, self.options.plays);
-        // generalised plays also start from the classical fit
-        let from_classical = classical
-            .filter(|_| st.envelope_split)
-            .and_then(|c| prob.theta_with_new(&c.theta, &c.names, &SPLIT_PARAMS));
-        let mut res = with_warm_starts(&st, &prob, from_classical.into_iter().collect())?;
+        // a refinement of a fit of this model on fewer samples, where its parameters fit
+        let refined = self.options.refine_from.get(o).and_then(|w| {
+            let st_w = if w.without_static_filters {
+                st.without_static_off_filters(out.values.len(), train.ts)?
+            } else {
+                st.clone()
+            };
+            let prob_w = problem(&st_w, self.options.plays);
+            if w.theta.len() != prob_w.n_theta() {
+                return None;
+            }
+            let res = refine(&prob_w, w.theta.clone(), &self.options).ok()?;
+            Some((st_w, prob_w, res))
+        });
+        let refining = refined.is_some();
+        let (mut st, mut prob, mut res) = match refined {
+            Some(r) => r,
+            None => {
+                let prob = problem(&st, self.options.plays);
+                // generalised plays also start from the classical fit
+                let from_classical = classical
+                    .filter(|_| st.envelope_split)
+                    .and_then(|c| prob.theta_with_new(&c.theta, &c.names, &SPLIT_PARAMS));
+                let res = with_warm_starts(&st, &prob, from_classical.into_iter().collect())?;
+                (st, prob, res)
+            }
+        };
+        let without_static_filters = self
+            .options
+            .refine_from
+            .get(o)
+            .is_some_and(|w| refining && w.without_static_filters);
+        let mut static_chosen = false;
         // the output without dynamics, which its fit cannot switch off, when the mode ran to
         // the edge of its band: kept when it fits better (an output of a 2-DoF record that
         // has no mode of its own, under steps)
-        let static_alternative = prob
-            .at_static_edge(&res.theta)
+        let static_alternative = (!refining && prob.at_static_edge(&res.theta))
             .then(|| st.without_static_off_filters(out.values.len(), train.ts))
             .flatten();
         if let Some(st0) = static_alternative {
@@ -1005,6 +1047,7 @@ impl GreyBoxConfig {
                 let its = res.iterations + r0.iterations;
                 if r0.eval.cost < res.eval.cost {
                     (st, prob, res) = (st0, prob0, r0);
+                    static_chosen = true;
                 }
                 res.iterations = its;
             }
@@ -1033,6 +1076,10 @@ impl GreyBoxConfig {
         let first = FirstStage {
             theta: res.theta.clone(),
             names: prob.term_param_names(),
+        };
+        let first_params = FirstStageParams {
+            theta: res.theta.clone(),
+            without_static_filters: without_static_filters || static_chosen,
         };
         // its basis (the play operators' outputs) is not needed by the second stage
         drop(prob);
@@ -1068,6 +1115,7 @@ impl GreyBoxConfig {
                     spec: spec2,
                     run: res2,
                     first_stage: Some(spec),
+                    first_params,
                 };
                 return Ok((staged, first));
             }
@@ -1076,6 +1124,7 @@ impl GreyBoxConfig {
             spec,
             run: res,
             first_stage: None,
+            first_params,
         };
         Ok((staged, first))
     }

@@ -42,5 +42,7 @@ pub use config::{FitOptions, GreyBoxConfig, Selected, CV_FOLDS, RIDGES, STARTS_R
 pub use driver::train_samples;
 pub use error::GreyBoxError;
 pub use memo::{ByConfig, FitMemo};
-pub use model::{FitSummary, FittedGreyBox, GreyBoxFile, OutputFit, FORMAT, VERSION};
+pub use model::{
+    FirstStageParams, FitSummary, FittedGreyBox, GreyBoxFile, OutputFit, FORMAT, VERSION,
+};
 pub use validate::{blocks, CrossValidation};

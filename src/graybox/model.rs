@@ -179,6 +179,16 @@ impl<'de> Deserialize<'de> for GreyBoxFile {
     }
 }
 
+/// An output's first-stage parameters as its fit left them: where a refit of the same model
+/// on more samples starts ([`super::FitOptions::refine_from`]). Not written to model files.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FirstStageParams {
+    pub theta: Vec<f64>,
+    /// Whether the fit left out the filters that can switch off (a mode that ran to the edge
+    /// of its band: the output without dynamics fitted better).
+    pub without_static_filters: bool,
+}
+
 /// A fitted grey-box model: a checked plant plus how it was fitted.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FittedGreyBox {
@@ -187,6 +197,8 @@ pub struct FittedGreyBox {
     pub config: GreyBoxConfig,
     pub plant: Plant,
     pub fit: FitSummary,
+    /// Per output, its first stage's parameters (empty for a model read from a file).
+    pub first_stages: Vec<FirstStageParams>,
 }
 
 impl FittedGreyBox {
@@ -400,6 +412,7 @@ impl FittedGreyBox {
             config,
             plant,
             fit: file.fit,
+            first_stages: Vec::new(),
         })
     }
 }
