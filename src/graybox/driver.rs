@@ -1014,10 +1014,10 @@ impl GreyBoxConfig {
                 return None;
             }
             let res = refine(&prob_w, w.theta.clone(), &self.options).ok()?;
-            Some((st_w, prob_w, res))
+            Some((st_w, prob_w, res, w.without_static_filters))
         });
         let refining = refined.is_some();
-        let (mut st, mut prob, mut res) = match refined {
+        let (mut st, mut prob, mut res, mut without_static_filters) = match refined {
             Some(r) => r,
             None => {
                 let prob = problem(&st, self.options.plays);
@@ -1026,15 +1026,9 @@ impl GreyBoxConfig {
                     .filter(|_| st.envelope_split)
                     .and_then(|c| prob.theta_with_new(&c.theta, &c.names, &SPLIT_PARAMS));
                 let res = with_warm_starts(&st, &prob, from_classical.into_iter().collect())?;
-                (st, prob, res)
+                (st, prob, res, false)
             }
         };
-        let without_static_filters = self
-            .options
-            .refine_from
-            .get(o)
-            .is_some_and(|w| refining && w.without_static_filters);
-        let mut static_chosen = false;
         // the output without dynamics, which its fit cannot switch off, when the mode ran to
         // the edge of its band: kept when it fits better (an output of a 2-DoF record that
         // has no mode of its own, under steps)
@@ -1047,7 +1041,7 @@ impl GreyBoxConfig {
                 let its = res.iterations + r0.iterations;
                 if r0.eval.cost < res.eval.cost {
                     (st, prob, res) = (st0, prob0, r0);
-                    static_chosen = true;
+                    without_static_filters = true;
                 }
                 res.iterations = its;
             }
@@ -1079,7 +1073,7 @@ impl GreyBoxConfig {
         };
         let first_params = FirstStageParams {
             theta: res.theta.clone(),
-            without_static_filters: without_static_filters || static_chosen,
+            without_static_filters,
         };
         // its basis (the play operators' outputs) is not needed by the second stage
         drop(prob);

@@ -1288,17 +1288,14 @@ fn refit_on_training(
             Some((g, sim))
         })
         .collect();
-    let sse = |o: usize, p: &[f64]| -> f64 {
-        let y = &train.outputs[o].values;
-        y.iter().zip(p).map(|(y, p)| (y - p) * (y - p)).sum()
-    };
+    let rmse = |o: usize, p: &[f64]| crate::metrics::rmse(&train.outputs[o].values, p);
     let mut any = false;
     for (&i, fit) in lists.iter().zip(&fits) {
         let Some((g, sim)) = fit else {
             continue;
         };
         for &o in outputs.iter().filter(|&&o| r.picks[o] == i) {
-            if sse(o, &sim[o]) < sse(o, &r.sim[o]) {
+            if rmse(o, &sim[o]) < rmse(o, &r.sim[o]) {
                 refitted[o] = Some(g.plant.spec.outputs[o].clone());
                 any = true;
             }

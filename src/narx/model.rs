@@ -342,7 +342,8 @@ impl FittedNarx {
             return self.predict_sampled(rec, mode);
         };
         // where a base's run diverged (`Err(sample)`), so does every prediction that needs it
-        let base_diverged: Vec<Option<usize>> = runs.iter().map(|r| r.clone().err()).collect();
+        let base_diverged: Vec<Option<usize>> =
+            runs.iter().map(|r| r.as_ref().err().copied()).collect();
         let mut g: Vec<Vec<f64>> = runs.into_iter().map(Result::unwrap_or_default).collect();
         // the networks see the residual of the outputs that have a base
         let mut resid = rec.clone();
