@@ -1195,9 +1195,7 @@ impl<'a> OutputMapTerm<'a> {
         let bounds = self.bounds();
         let mut count = vec![0usize; bounds.len()];
         for (k, &v) in z.iter().enumerate() {
-            if self.held_out.as_ref().is_some_and(|r| r.contains(&k))
-                || self.left_out.as_ref().is_some_and(|m| m[k])
-            {
+            if !self.fitted(k) {
                 continue;
             }
             if let Some(i) = self.interval_of(&bounds, v) {
@@ -1217,6 +1215,12 @@ impl<'a> OutputMapTerm<'a> {
             }
         }
         ties
+    }
+
+    /// Whether the fit sees row `k` (neither in the held-out block nor left out).
+    fn fitted(&self, k: usize) -> bool {
+        !(self.held_out.as_ref().is_some_and(|r| r.contains(&k))
+            || self.left_out.as_ref().is_some_and(|m| m[k]))
     }
 
     /// [`OutputMapTerm::ties_of`] the operator's output at weights `w` (cached), from that
@@ -1336,8 +1340,10 @@ impl<'a> OutputMapTerm<'a> {
     }
 
     /// The dead-zone superposition (thresholds with 0 among them, weights) of the slopes
-    /// `s` of S on the intervals between the knots.
-    fn dead_zones(&self, s: &[f64]) -> DeadZoneSpec {
+    /// `s` of S on the intervals between the knots, and beyond the operator's output range
+    /// over the fitted samples `(lo, hi)` the gentlest slope of S on that side up to there
+    /// (see [`OutputMapTerm::spec`]).
+    fn dead_zones(&self, s: &[f64], (lo, hi): (f64, f64)) -> DeadZoneSpec {
         // the interval around 0: the first whose upper bound is above 0
         let mid = self.knots.iter().take_while(|&&d| d < 0.0).count();
         let steepest = s.iter().fold(0.0f64, |a, v| a.max(v.abs()));
@@ -1361,6 +1367,30 @@ impl<'a> OutputMapTerm<'a> {
         if mid == self.knots.len() {
             thresholds.push(0.0);
             weights.push(s[mid]);
+        }
+        // beyond the fitted range: the gentlest slope between 0 and the range's end
+        let bounds = self.bounds();
+        let at = |v: f64| bounds.partition_point(|b| b.1 < v).min(s.len() - 1);
+        let mut edge = |z: f64, outer: f64, gentlest: f64| {
+            if gentlest < outer && z != 0.0 && z.is_finite() {
+                let i = thresholds.partition_point(|&d| d < z);
+                if thresholds.get(i) == Some(&z) {
+                    weights[i] += gentlest - outer;
+                } else {
+                    thresholds.insert(i, z);
+                    weights.insert(i, gentlest - outer);
+                }
+            }
+        };
+        if hi > 0.0 {
+            let i = at(hi);
+            let gentlest = s[mid..=i].iter().fold(f64::INFINITY, |a, &v| a.min(v));
+            edge(hi, s[i], gentlest);
+        }
+        if lo < 0.0 {
+            let i = at(lo);
+            let gentlest = s[i..=mid].iter().fold(f64::INFINITY, |a, &v| a.min(v));
+            edge(lo, s[i], gentlest);
         }
         DeadZoneSpec {
             thresholds,
@@ -1523,9 +1553,18 @@ impl TermFit for OutputMapTerm<'_> {
                 *v += t;
             }
         }
-        let slopes = Self::tied(&coef[..m], &self.ties_at(&w, None));
+        // beyond the operator's output over the fitted samples the map has no data: it goes on
+        // with its gentlest slope on that side, not with the slope of its last interval,
+        // which a staircase's one level there can fit to anything (held-out zoo seed 1043,
+        // member 8: 457 times the slope around 0, a test level beyond the training range
+        // predicted 1645 where the plant gave about 4)
+        let z = self.z(&w);
+        let slopes = Self::tied(&coef[..m], &self.ties_at(&w, Some(&z)));
+        let range = (0..z.len())
+            .filter(|&k| self.fitted(k))
+            .fold((0.0f64, 0.0f64), |(a, b), k| (a.min(z[k]), b.max(z[k])));
         let spec = PrandtlIshlinskiiSpec {
-            dead_zones: Some(self.dead_zones(&slopes)),
+            dead_zones: Some(self.dead_zones(&slopes, range)),
             ..pi
         };
         let mut extra_paths: Vec<Box<dyn EffectSpec>> = Vec::new();
@@ -2161,10 +2200,10 @@ mod tests {
         let cols = t.columns(&vec![0.0; t.n_params()]);
         assert_eq!(cols.len(), 7);
         let slopes = [0.2, 0.5, 0.9, 1.0, 0.7, 0.3, 0.05];
-        let dz = t.dead_zones(&slopes);
+        let dz = t.dead_zones(&slopes, (-3.0, 5.0));
         let spec = PrandtlIshlinskiiSpec {
             dead_zones: Some(dz.clone()),
-            ..pi
+            ..pi.clone()
         };
         spec.check().expect("an increasing map is a valid operator");
         for (k, &v) in z.iter().enumerate() {
@@ -2177,6 +2216,35 @@ mod tests {
                 .sum();
             assert!((direct - zones).abs() < 1e-12, "z {v}: {direct} vs {zones}");
         }
+        // a map that steepens again at either end goes on beyond the range with its gentlest
+        // slope on that side: 0.5 below -3, 0.3 above 5
+        let slopes = [0.6, 0.5, 0.9, 1.0, 0.7, 0.3, 0.4];
+        let dz = t.dead_zones(&slopes, (-3.0, 5.0));
+        let spec = PrandtlIshlinskiiSpec {
+            dead_zones: Some(dz.clone()),
+            ..pi
+        };
+        spec.check().expect("an increasing map is a valid operator");
+        let map = |v: f64| -> f64 {
+            dz.thresholds
+                .iter()
+                .zip(&dz.weights)
+                .map(|(&d, &c)| c * dead_zone(v, d))
+                .sum()
+        };
+        let direct = |k: usize| -> f64 { slopes.iter().zip(&cols).map(|(s, c)| s * c.0[k]).sum() };
+        assert!((map(5.0) - direct(400)).abs() < 1e-12);
+        assert!(
+            (map(7.0) - (direct(400) + 0.3 * 2.0)).abs() < 1e-12,
+            "{}",
+            map(7.0)
+        );
+        assert!((map(-3.0) - direct(0)).abs() < 1e-12);
+        assert!(
+            (map(-4.0) - (direct(0) - 0.5)).abs() < 1e-12,
+            "{}",
+            map(-4.0)
+        );
     }
 
     /// The second stage refits the first stage's play weights but keeps their sign (the
