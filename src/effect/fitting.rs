@@ -85,8 +85,13 @@ impl PreviousPath {
     /// The least and greatest (0 included) of an operator's output `z` over the samples
     /// outside `held_out`: the range a second stage's knots spread over.
     pub fn fitted_range(z: &[f64], held_out: Option<&std::ops::Range<usize>>) -> (f64, f64) {
+        Self::range_where(z, |k| held_out.is_none_or(|r| !r.contains(&k)))
+    }
+
+    /// The least and greatest (0 included) of `z` over the samples `k` where `fitted(k)`.
+    pub fn range_where(z: &[f64], fitted: impl Fn(usize) -> bool) -> (f64, f64) {
         (0..z.len())
-            .filter(|k| held_out.is_none_or(|r| !r.contains(k)))
+            .filter(|&k| fitted(k))
             .fold((0.0f64, 0.0f64), |(a, b), k| (a.min(z[k]), b.max(z[k])))
     }
 }

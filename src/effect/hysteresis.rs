@@ -1372,7 +1372,7 @@ impl<'a> OutputMapTerm<'a> {
         let bounds = self.bounds();
         let at = |v: f64| bounds.partition_point(|b| b.1 < v).min(s.len() - 1);
         let mut edge = |z: f64, outer: f64, gentlest: f64| {
-            if gentlest < outer && z != 0.0 && z.is_finite() {
+            if gentlest < outer && z.is_finite() {
                 let i = thresholds.partition_point(|&d| d < z);
                 if thresholds.get(i) == Some(&z) {
                     weights[i] += gentlest - outer;
@@ -1560,9 +1560,7 @@ impl TermFit for OutputMapTerm<'_> {
         // predicted 1645 where the plant gave about 4)
         let z = self.z(&w);
         let slopes = Self::tied(&coef[..m], &self.ties_at(&w, Some(&z)));
-        let range = (0..z.len())
-            .filter(|&k| self.fitted(k))
-            .fold((0.0f64, 0.0f64), |(a, b), k| (a.min(z[k]), b.max(z[k])));
+        let range = super::fitting::PreviousPath::range_where(&z, |k| self.fitted(k));
         let spec = PrandtlIshlinskiiSpec {
             dead_zones: Some(self.dead_zones(&slopes, range)),
             ..pi

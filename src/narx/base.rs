@@ -1187,8 +1187,24 @@ impl NarxConfig {
     ) {
         let n = train.len();
         let outputs: Vec<usize> = r.chosen.iter().chain(r.contested).copied().collect();
+        let mut resid = train.clone();
+        resid.outputs = outputs
+            .iter()
+            .map(|&o| {
+                let mut s = train.outputs[o].clone();
+                for (v, g) in s.values.iter_mut().zip(&r.sim[o]) {
+                    *v -= g;
+                }
+                s
+            })
+            .collect();
+        let mut cfg = m.config.clone();
+        cfg.outputs = resid.output_names();
+        cfg.robust.try_features.clear();
+        cfg.robust.try_decimation = false;
+        cfg.robust.try_greybox = false;
         // (a residual the network cannot be fitted to, e.g. constant, leaves the base alone)
-        let (resid, Some(net)) = residual_network(m, train, r.sim, &outputs) else {
+        let Ok(net) = cfg.fit_fixed(std::slice::from_ref(&resid)) else {
             return;
         };
         let runs = free_runs(&net, &resid);
@@ -1306,35 +1322,6 @@ fn refit_on_training(
     } else {
         r.n_fit
     }
-}
-
-/// The residual record of `outputs` (`train`'s outputs less the base's runs `sim`, one per
-/// output of the model) and a network fitted to it with `m`'s configuration (features,
-/// sampling) and no further selection (`None`: the residual cannot be fitted, e.g. constant).
-fn residual_network(
-    m: &FittedNarx,
-    train: &IoRecord,
-    sim: &[Vec<f64>],
-    outputs: &[usize],
-) -> (IoRecord, Option<FittedNarx>) {
-    let mut resid = train.clone();
-    resid.outputs = outputs
-        .iter()
-        .map(|&o| {
-            let mut s = train.outputs[o].clone();
-            for (v, g) in s.values.iter_mut().zip(&sim[o]) {
-                *v -= g;
-            }
-            s
-        })
-        .collect();
-    let mut cfg = m.config.clone();
-    cfg.outputs = resid.output_names();
-    cfg.robust.try_features.clear();
-    cfg.robust.try_decimation = false;
-    cfg.robust.try_greybox = false;
-    let net = cfg.fit_fixed(std::slice::from_ref(&resid)).ok();
-    (resid, net)
 }
 
 /// What the residual networks are fitted against: the grey-box run over the training record,
