@@ -1858,8 +1858,14 @@ pub fn reversals(u: &[f64]) -> usize {
 /// and up to -2 takes the operator through a loading, a reversal and a branch, two
 /// reversals of its path where the record's samples show one.
 pub fn reversals_from_rest(u: &[f64]) -> usize {
+    reversal_samples_from_rest(u).len()
+}
+
+/// The samples at which the path of an operator started at rest is first seen moving the
+/// other way ([`reversals_from_rest`] of them).
+pub fn reversal_samples_from_rest(u: &[f64]) -> Vec<usize> {
     let (lo, hi) = crate::metrics::min_max(u);
-    reversals_after(u, 0.0, 1e-9 * (hi.max(0.0) - lo.min(0.0))).len()
+    reversals_after(u, 0.0, 1e-9 * (hi.max(0.0) - lo.min(0.0)))
 }
 
 /// The samples at which a signal is first seen moving the other way, in order (moves below
