@@ -122,6 +122,39 @@ pub fn selection_samples(train: &IoRecord, n_fit: usize) -> usize {
         .fold(n_fit.min(BASE_SELECTION_SAMPLES), usize::max)
 }
 
+/// The share of a record with a validation part that the validation part keeps at least when
+/// the base's fitting part runs on past its default to show a loop
+/// ([`base_fitting_samples`]).
+pub const BASE_VALIDATION_LEAST: f64 = 0.1;
+
+/// The samples of a record with a validation part that its base's lists are fitted on: the
+/// fitting part `n_fit`, or, where no input reverses twice from rest on it (the count with
+/// which a hysteresis fit checks its record, `effect::hysteresis::reversals_from_rest`) and
+/// one does on the training record, on up to that input's second reversal, when the
+/// validation part keeps [`BASE_VALIDATION_LEAST`] of the record. A staircase of a few held
+/// levels can show its first loop only near the training record's end; on the default
+/// fitting part every list with hysteresis would be refused, and the linear base left.
+pub fn base_fitting_samples(train: &IoRecord, n_fit: usize) -> usize {
+    use crate::effect::hysteresis::{reversal_samples_from_rest, reversals_from_rest};
+    let n = train.len();
+    let n_fit = n_fit.min(n);
+    if train
+        .inputs
+        .iter()
+        .any(|s| reversals_from_rest(&s.values[..n_fit]) >= 2)
+    {
+        return n_fit;
+    }
+    let latest = n - (n as f64 * BASE_VALIDATION_LEAST).ceil() as usize;
+    train
+        .inputs
+        .iter()
+        .filter_map(|s| reversal_samples_from_rest(&s.values).get(1).map(|&k| k + 1))
+        .min()
+        .filter(|&k| k <= latest)
+        .map_or(n_fit, |k| k.max(n_fit))
+}
+
 /// A long record's candidates with these effects, fitted on the first `n_fit` samples with its
 /// ridge chosen per output (cross-validation at the fitted nonlinear parameters), each with
 /// its free run over the training record: the fit, and with the default operator, where its
@@ -140,8 +173,12 @@ fn long_candidates(
     };
     cfg.options.choose_ridge = !bouc_wen_only(list);
     cfg.options.output_map = second_stage && !bouc_wen_only(list);
-    let Ok((model, first_stage)) = cfg.fit_stages(train) else {
-        return Vec::new();
+    let (model, first_stage) = match cfg.fit_stages(train) {
+        Ok(f) => f,
+        Err(e) => {
+            trace_refused(list, &e);
+            return Vec::new();
+        }
     };
     let candidate = |model: FittedGreyBox, output_map: bool| {
         let sim = model.simulate(train).ok()?;
@@ -594,7 +631,10 @@ fn candidates(train: &IoRecord, n_fit: usize, short: bool) -> Vec<Candidate> {
         cfg.options.ridge = ridge;
         cfg.options.output_map = output_map;
         cfg.options.envelope_split = envelope_split;
-        let cv = cfg.cross_validate(train, SHORT_FOLDS).ok()?;
+        let cv = cfg
+            .cross_validate(train, SHORT_FOLDS)
+            .map_err(|e| trace_refused(list, &e))
+            .ok()?;
         let model = cv.fits.last()?.clone();
         Some(Candidate {
             list,
@@ -724,6 +764,13 @@ fn keeps_residual_network(
         residual.is_some() && !richer_wins(network, residual)
     } else {
         richer_wins(residual, base)
+    }
+}
+
+/// With `HYSTBENCH_TRACE` set: why a list was not fitted, on standard error.
+fn trace_refused(list: &str, why: &dyn std::fmt::Display) {
+    if std::env::var_os("HYSTBENCH_TRACE").is_some() {
+        eprintln!("base: {list} refused: {why}");
     }
 }
 
@@ -918,6 +965,11 @@ impl NarxConfig {
             self.robust.validation_fraction
         };
         let n_fit = n - (n as f64 * held).round() as usize;
+        let n_fit = if short {
+            n_fit
+        } else {
+            base_fitting_samples(train, n_fit)
+        };
         // the network's free run over the training record: the model's own, or on a short
         // record the probe's (which did not train on the tail)
         let reference = match (short, probe) {
@@ -1407,6 +1459,24 @@ mod tests {
         assert_eq!(selection_samples(&rec, 40_000), 3 * 12_000 + 1);
         let flat = staircase(&[1.0, 2.0, 3.0], 30_000);
         assert_eq!(selection_samples(&flat, 80_000), BASE_SELECTION_SAMPLES);
+    }
+
+    /// A staircase of a few held levels whose first loop comes near the training record's
+    /// end: the base's fitting part runs on to its second reversal from rest where the
+    /// validation part keeps a tenth of the record, and stays where the fitting part shows a
+    /// loop already or the loop comes later.
+    #[test]
+    fn the_base_fitting_part_runs_on_to_the_first_loop() {
+        // from rest: down to -4 (a loading), up at 1 (the first reversal), down at 0.5 (the
+        // second, at sample 2,000 of 2,400: past the fitting part's 1,920)
+        let rec = staircase(&[-4.0, 1.0, 1.5, 2.0, 2.5, 0.5], 400);
+        assert_eq!(base_fitting_samples(&rec, 1_920), 2_001);
+        // the second reversal in the last tenth (at 2,160): too late to leave a verdict
+        let late = staircase(&[-4.0, 1.0, 1.5, 2.0, 2.5, 2.7, 2.9, 3.0, 3.1, 0.5], 240);
+        assert_eq!(base_fitting_samples(&late, 1_920), 1_920);
+        // a loop on the fitting part already
+        let early = staircase(&[-4.0, 1.0, 0.5, 2.0, 2.5, 3.0], 400);
+        assert_eq!(base_fitting_samples(&early, 1_920), 1_920);
     }
 
     /// A staircase that starts at a level away from 0 loads the operator from rest on its way
