@@ -113,9 +113,9 @@ pub fn selection_samples(train: &IoRecord, n_fit: usize) -> usize {
             let at = crate::effect::hysteresis::reversal_samples(u);
             let wanted = at.len().div_ceil(2).clamp(2, SELECTION_REVERSALS);
             let loops = at.get(wanted - 1).map_or(0, |&k| k + 1);
-            // the two reversals from rest that a hysteresis fit asks of some input
-            // (`reversals_from_rest`): a staircase that starts at a level away from 0 loads
-            // the operator on its way there
+            // and the input's second reversal from rest, the count with which a hysteresis
+            // fit checks its record (`reversals_from_rest`): a staircase that starts at a
+            // level away from 0 loads the operator on its way there
             let rest = crate::effect::hysteresis::reversal_samples_from_rest(u);
             loops.max(rest.get(1).map_or(0, |&k| k + 1))
         })
