@@ -1702,7 +1702,7 @@ impl Effect for HysteresisEffect {
     }
     fn term<'a>(&self, setup: &PathSetup<'a>) -> Option<Box<dyn TermFit + 'a>> {
         let u = setup.u;
-        if reversals_from_rest(setup.whole) < 2 {
+        if reversals_from_rest(setup.whole) < LOOP_REVERSALS {
             // no loop on this path's input (a cross path driven by a staircase, say): a
             // linear path, the gain column alone; check_record asks one input to reverse
             return Some(Box::new(PiTerm::new(
@@ -1781,7 +1781,7 @@ impl Effect for HysteresisEffect {
         }
         inputs
             .iter()
-            .filter(|u| reversals_from_rest(u) >= 2)
+            .filter(|u| reversals_from_rest(u) >= LOOP_REVERSALS)
             .map(|u| plays_determined(u, plays, variant))
             .min()
     }
@@ -1789,7 +1789,7 @@ impl Effect for HysteresisEffect {
     /// the paths of inputs that do not are linear.
     fn check_record(&self, rec: &RecordView, _variant: usize) -> Result<(), RecordError> {
         let revs: Vec<usize> = rec.inputs.iter().map(|u| reversals_from_rest(u)).collect();
-        if revs.iter().any(|&r| r >= 2) {
+        if revs.iter().any(|&r| r >= LOOP_REVERSALS) {
             return Ok(());
         }
         let (name, rev) = rec
@@ -1863,9 +1863,21 @@ pub fn reversals_from_rest(u: &[f64]) -> usize {
 
 /// The samples at which the path of an operator started at rest is first seen moving the
 /// other way ([`reversals_from_rest`] of them).
-pub fn reversal_samples_from_rest(u: &[f64]) -> Vec<usize> {
+fn reversal_samples_from_rest(u: &[f64]) -> Vec<usize> {
     let (lo, hi) = crate::metrics::min_max(u);
     reversals_after(u, 0.0, 1e-9 * (hi.max(0.0) - lo.min(0.0)))
+}
+
+/// The reversals from rest ([`reversals_from_rest`]) that make a loop: a path whose input
+/// shows fewer is linear, and a record none of whose inputs shows them is refused.
+pub const LOOP_REVERSALS: usize = 2;
+
+/// The first samples of `u` that hold a loop of an operator started at rest: up to and with
+/// its [`LOOP_REVERSALS`]-th reversal from rest (`None`: `u` holds fewer).
+pub fn loop_samples(u: &[f64]) -> Option<usize> {
+    reversal_samples_from_rest(u)
+        .get(LOOP_REVERSALS - 1)
+        .map(|&k| k + 1)
 }
 
 /// The samples at which a signal is first seen moving the other way, in order (moves below

@@ -113,11 +113,10 @@ pub fn selection_samples(train: &IoRecord, n_fit: usize) -> usize {
             let at = crate::effect::hysteresis::reversal_samples(u);
             let wanted = at.len().div_ceil(2).clamp(2, SELECTION_REVERSALS);
             let loops = at.get(wanted - 1).map_or(0, |&k| k + 1);
-            // and the input's second reversal from rest, the count with which a hysteresis
-            // fit checks its record (`reversals_from_rest`): a staircase that starts at a
-            // level away from 0 loads the operator on its way there
-            let rest = crate::effect::hysteresis::reversal_samples_from_rest(u);
-            loops.max(rest.get(1).map_or(0, |&k| k + 1))
+            // and the input's first loop from rest, which a hysteresis fit checks its record
+            // for (`loop_samples`): a staircase that starts at a level away from 0 loads the
+            // operator on its way there
+            loops.max(crate::effect::hysteresis::loop_samples(u).unwrap_or(0))
         })
         .fold(n_fit.min(BASE_SELECTION_SAMPLES), usize::max)
 }
@@ -128,20 +127,20 @@ pub fn selection_samples(train: &IoRecord, n_fit: usize) -> usize {
 pub const BASE_VALIDATION_LEAST: f64 = 0.1;
 
 /// The samples of a record with a validation part that its base's lists are fitted on: the
-/// fitting part `n_fit`, or, where no input reverses twice from rest on it (the count with
-/// which a hysteresis fit checks its record, `effect::hysteresis::reversals_from_rest`) and
-/// one does on the training record, on up to that input's second reversal, when the
-/// validation part keeps [`BASE_VALIDATION_LEAST`] of the record. A staircase of a few held
-/// levels can show its first loop only near the training record's end; on the default
-/// fitting part every list with hysteresis would be refused, and the linear base left.
+/// fitting part `n_fit`, or, where no input shows a loop from rest on it (what a hysteresis
+/// fit checks its record for, `effect::hysteresis::loop_samples`) and one does on the
+/// training record, on up to that input's loop, when the validation part keeps
+/// [`BASE_VALIDATION_LEAST`] of the record. A staircase of a few held levels can show its
+/// first loop only near the training record's end; on the default fitting part every list
+/// with hysteresis would be refused, and the linear base left.
 pub fn base_fitting_samples(train: &IoRecord, n_fit: usize) -> usize {
-    use crate::effect::hysteresis::{reversal_samples_from_rest, reversals_from_rest};
+    use crate::effect::hysteresis::loop_samples;
     let n = train.len();
     let n_fit = n_fit.min(n);
     if train
         .inputs
         .iter()
-        .any(|s| reversals_from_rest(&s.values[..n_fit]) >= 2)
+        .any(|s| loop_samples(&s.values[..n_fit]).is_some())
     {
         return n_fit;
     }
@@ -149,7 +148,7 @@ pub fn base_fitting_samples(train: &IoRecord, n_fit: usize) -> usize {
     train
         .inputs
         .iter()
-        .filter_map(|s| reversal_samples_from_rest(&s.values).get(1).map(|&k| k + 1))
+        .filter_map(|s| loop_samples(&s.values))
         .min()
         .filter(|&k| k <= latest)
         .map_or(n_fit, |k| k.max(n_fit))
