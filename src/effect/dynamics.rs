@@ -966,54 +966,81 @@ fn two_modes(a: &Discrete, b: &Discrete, out: &mut [f64], s: &mut FilterState) {
     s.copy_from_slice(&[x[0], x[1], z[0], z[1]]);
 }
 
-/// [`two_modes`] on the signals of `cols` four at a time in the lanes of AVX2 registers, where
-/// the processor has it (as [`four_lanes`] does for one mode: lane `l` doing signal `l`'s
-/// arithmetic in `two_modes`'s order, the same bits). Returns how many signals it filtered (a
-/// multiple of four from the first; none without AVX2 or where the four differ in length).
-fn two_modes_four_lanes(
-    a: &Discrete,
-    b: &Discrete,
-    cols: &mut [&mut [f64]],
-    states: &mut [FilterState],
-) -> usize {
+/// A path's two modes discretised: the first at its share of the gain, the second at its own.
+type ModePair<'a> = (&'a Discrete, &'a Discrete);
+
+/// [`two_modes`] on each signal of `cols` with its own pair of modes (`modes[i]` on `cols[i]`
+/// from `states[i]`): eight at a time in the lanes of AVX-512 registers, then four at a time
+/// in those of AVX2, where the processor has them, and the rest alone. Lane `l` does signal
+/// `l`'s arithmetic in `two_modes`'s order (as [`four_lanes`] does for one mode): the same
+/// bits. Groups stop where their signals differ in length.
+fn two_modes_each(modes: &[ModePair<'_>], cols: &mut [&mut [f64]], states: &mut [FilterState]) {
+    debug_assert!(modes.len() == cols.len() && cols.len() == states.len());
+    #[allow(unused_mut)]
+    let mut done = 0;
     #[cfg(target_arch = "x86_64")]
-    if crate::numeric::simd::uses_avx2() {
-        // SAFETY: the processor supports AVX2 (checked above); four signals of one length
-        return in_groups::<4, 4>(cols, states, |g, x| unsafe { two_modes_4(a, b, g, x) });
+    {
+        use crate::numeric::simd::{uses_avx2, uses_avx512};
+        if uses_avx512() {
+            let mut at = 0;
+            done += in_groups::<8, 4>(cols, states, |g, x| {
+                let m = &modes[at..at + 8];
+                at += 8;
+                // SAFETY: the processor supports AVX-512F (checked above); eight signals of
+                // one length
+                unsafe { two_modes_8(m, g, x) }
+            });
+        }
+        if uses_avx2() {
+            let mut at = done;
+            done += in_groups::<4, 4>(&mut cols[done..], &mut states[done..], |g, x| {
+                let m = &modes[at..at + 4];
+                at += 4;
+                // SAFETY: the processor supports AVX2 (checked above); four signals of one
+                // length
+                unsafe { two_modes_4(m, g, x) }
+            });
+        }
     }
-    let _ = (a, b, cols, states);
-    0
+    for ((m, c), s) in modes[done..]
+        .iter()
+        .zip(cols[done..].iter_mut())
+        .zip(&mut states[done..])
+    {
+        two_modes(m.0, m.1, c, s);
+    }
 }
 
-/// [`two_modes`] on four signals of one length, states `x` (`[x1, x2, x3, x4]` each, updated):
-/// AVX2 lanes over whole blocks of four samples, the rest alone.
+/// [`two_modes`] on four signals of one length, each with its own modes (`m[l]`), states `x`
+/// (`[x1, x2, x3, x4]` each, updated): AVX2 lanes over whole blocks of four samples, the rest
+/// alone.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn two_modes_4(a: &Discrete, b: &Discrete, cols: &mut [&mut [f64]], x: &mut [[f64; 4]; 4]) {
+unsafe fn two_modes_4(m: &[ModePair<'_>], cols: &mut [&mut [f64]], x: &mut [[f64; 4]; 4]) {
     use std::arch::x86_64::*;
     let n = cols[0].len();
-    assert!(cols.len() == 4 && cols.iter().all(|c| c.len() == n));
+    assert!(m.len() == 4 && cols.len() == 4 && cols.iter().all(|c| c.len() == n));
     let full = n - n % 4;
-    let set = _mm256_set1_pd;
-    let (pa, ga, ad) = (
-        [
-            set(a.phi[(0, 0)]),
-            set(a.phi[(0, 1)]),
-            set(a.phi[(1, 0)]),
-            set(a.phi[(1, 1)]),
-        ],
-        [set(a.gamma[0]), set(a.gamma[1])],
-        set(a.d),
+    let lane = |f: fn(&ModePair<'_>) -> f64| _mm256_set_pd(f(&m[3]), f(&m[2]), f(&m[1]), f(&m[0]));
+    let pa = [
+        lane(|m| m.0.phi[(0, 0)]),
+        lane(|m| m.0.phi[(0, 1)]),
+        lane(|m| m.0.phi[(1, 0)]),
+        lane(|m| m.0.phi[(1, 1)]),
+    ];
+    let (ga, ad) = (
+        [lane(|m| m.0.gamma[0]), lane(|m| m.0.gamma[1])],
+        lane(|m| m.0.d),
     );
-    let (pb, gb, bd) = (
-        [
-            set(b.phi[(0, 0)]),
-            set(b.phi[(0, 1)]),
-            set(b.phi[(1, 0)]),
-            set(b.phi[(1, 1)]),
-        ],
-        [set(b.gamma[0]), set(b.gamma[1])],
-        set(b.d),
+    let pb = [
+        lane(|m| m.1.phi[(0, 0)]),
+        lane(|m| m.1.phi[(0, 1)]),
+        lane(|m| m.1.phi[(1, 0)]),
+        lane(|m| m.1.phi[(1, 1)]),
+    ];
+    let (gb, bd) = (
+        [lane(|m| m.1.gamma[0]), lane(|m| m.1.gamma[1])],
+        lane(|m| m.1.d),
     );
     let lanes = |i: usize| _mm256_set_pd(x[3][i], x[2][i], x[1][i], x[0][i]);
     let (mut x0, mut x1, mut z0, mut z1) = (lanes(0), lanes(1), lanes(2), lanes(3));
@@ -1042,7 +1069,88 @@ unsafe fn two_modes_4(a: &Discrete, b: &Discrete, cols: &mut [&mut [f64]], x: &m
     }
     for (l, c) in cols.iter_mut().enumerate() {
         let mut s: FilterState = (0..4).map(|i| st[i][l]).collect();
-        two_modes(a, b, &mut c[full..], &mut s);
+        two_modes(m[l].0, m[l].1, &mut c[full..], &mut s);
+        x[l] = [s[0], s[1], s[2], s[3]];
+    }
+}
+
+/// [`two_modes`] on eight signals of one length, each with its own modes (`m[l]`), states `x`
+/// (updated): AVX-512 lanes over whole blocks of eight samples, the rest alone.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn two_modes_8(m: &[ModePair<'_>], cols: &mut [&mut [f64]], x: &mut [[f64; 4]; 8]) {
+    use std::arch::x86_64::*;
+    let n = cols[0].len();
+    assert!(m.len() == 8 && cols.len() == 8 && cols.iter().all(|c| c.len() == n));
+    let full = n - n % 8;
+    let lane = |f: fn(&ModePair<'_>) -> f64| {
+        _mm512_set_pd(
+            f(&m[7]),
+            f(&m[6]),
+            f(&m[5]),
+            f(&m[4]),
+            f(&m[3]),
+            f(&m[2]),
+            f(&m[1]),
+            f(&m[0]),
+        )
+    };
+    let pa = [
+        lane(|m| m.0.phi[(0, 0)]),
+        lane(|m| m.0.phi[(0, 1)]),
+        lane(|m| m.0.phi[(1, 0)]),
+        lane(|m| m.0.phi[(1, 1)]),
+    ];
+    let (ga, ad) = (
+        [lane(|m| m.0.gamma[0]), lane(|m| m.0.gamma[1])],
+        lane(|m| m.0.d),
+    );
+    let pb = [
+        lane(|m| m.1.phi[(0, 0)]),
+        lane(|m| m.1.phi[(0, 1)]),
+        lane(|m| m.1.phi[(1, 0)]),
+        lane(|m| m.1.phi[(1, 1)]),
+    ];
+    let (gb, bd) = (
+        [lane(|m| m.1.gamma[0]), lane(|m| m.1.gamma[1])],
+        lane(|m| m.1.d),
+    );
+    let lanes = |i: usize| {
+        _mm512_set_pd(
+            x[7][i], x[6][i], x[5][i], x[4][i], x[3][i], x[2][i], x[1][i], x[0][i],
+        )
+    };
+    let (mut x0, mut x1, mut z0, mut z1) = (lanes(0), lanes(1), lanes(2), lanes(3));
+    let ptrs: [*mut f64; 8] = std::array::from_fn(|l| cols[l].as_mut_ptr());
+    let (add, mul) = (_mm512_add_pd, _mm512_mul_pd);
+    for s in (0..full).step_by(8) {
+        // SAFETY: s + 8 <= full <= n, every signal's length
+        let w = transpose_8x8(std::array::from_fn(|l| unsafe {
+            _mm512_loadu_pd(ptrs[l].add(s))
+        }));
+        let mut o = [_mm512_setzero_pd(); 8];
+        for (k, &wk) in w.iter().enumerate() {
+            // (x1 + d_a w + x3) + d_b w, as `two_modes`
+            o[k] = add(add(add(x0, mul(ad, wk)), z0), mul(bd, wk));
+            let n0 = add(add(mul(pa[0], x0), mul(pa[1], x1)), mul(ga[0], wk));
+            let n1 = add(add(mul(pa[2], x0), mul(pa[3], x1)), mul(ga[1], wk));
+            let m0 = add(add(mul(pb[0], z0), mul(pb[1], z1)), mul(gb[0], wk));
+            let m1 = add(add(mul(pb[2], z0), mul(pb[3], z1)), mul(gb[1], wk));
+            (x0, x1, z0, z1) = (n0, n1, m0, m1);
+        }
+        for (l, v) in transpose_8x8(o).into_iter().enumerate() {
+            // SAFETY: as the loads
+            unsafe { _mm512_storeu_pd(ptrs[l].add(s), v) };
+        }
+    }
+    let mut st = [[0.0f64; 8]; 4];
+    for (i, v) in [x0, x1, z0, z1].into_iter().enumerate() {
+        // SAFETY: eight doubles
+        unsafe { _mm512_storeu_pd(st[i].as_mut_ptr(), v) };
+    }
+    for (l, c) in cols.iter_mut().enumerate() {
+        let mut s: FilterState = (0..4).map(|i| st[i][l]).collect();
+        two_modes(m[l].0, m[l].1, &mut c[full..], &mut s);
         x[l] = [s[0], s[1], s[2], s[3]];
     }
 }
@@ -1146,10 +1254,7 @@ impl FilterFit for ModesFilter {
         Prepared::Apply(Box::new(
             move |cols: &mut [&mut [f64]], states: &mut [FilterState]| {
                 debug_assert_eq!(cols.len(), states.len(), "a state per signal");
-                let fours = two_modes_four_lanes(&a, &b, cols, states);
-                for (out, s) in cols[fours..].iter_mut().zip(states[fours..].iter_mut()) {
-                    two_modes(&a, &b, out, s);
-                }
+                two_modes_each(&vec![(&a, &b); cols.len()], cols, states);
             },
         ))
     }
@@ -1170,6 +1275,58 @@ impl FilterFit for ModesFilter {
             .zip(&a)
             .map(|(b, a)| (b - a) / (2.0 * FD_STEP))
             .collect()
+    }
+    /// Central differences as [`FilterFit::derivative_path`]'s, every parameter's two runs
+    /// side by side in the lanes of [`two_modes_each`] (each its own modes).
+    fn derivatives_path(
+        &self,
+        th: &[f64],
+        x: &[f64],
+        qs: &[usize],
+        path: usize,
+    ) -> Option<Vec<Vec<f64>>> {
+        let moves = |q: usize| q < MODES_SHARED || q == MODES_SHARED + path;
+        // each moved parameter's two runs (lower, upper), None where the modes are invalid
+        let runs: Vec<Option<(Discrete, Discrete)>> = qs
+            .iter()
+            .filter(|&&q| moves(q))
+            .flat_map(|&q| {
+                let (mut lo, mut hi) = (th.to_vec(), th.to_vec());
+                lo[q] -= FD_STEP;
+                hi[q] += FD_STEP;
+                [lo, hi].map(|t| match self.dynamics(&t, path).discrete_modes(self.ts) {
+                    Ok((a, Some(b))) => Some((a, b)),
+                    _ => None,
+                })
+            })
+            .collect();
+        let valid: Vec<ModePair<'_>> = runs.iter().flatten().map(|(a, b)| (a, b)).collect();
+        let mut filtered = vec![x.to_vec(); valid.len()];
+        let mut cols: Vec<&mut [f64]> = filtered.iter_mut().map(|c| c.as_mut_slice()).collect();
+        two_modes_each(&valid, &mut cols, &mut vec![Vec::new(); valid.len()]);
+        let mut filtered = filtered.into_iter();
+        let mut outs = runs
+            .iter()
+            .map(|r| match r {
+                Some(_) => filtered.next(),
+                None => None,
+            })
+            .map(|c| c.unwrap_or_else(|| vec![f64::NAN; x.len()]));
+        Some(
+            qs.iter()
+                .map(|&q| {
+                    if !moves(q) {
+                        return vec![0.0; x.len()];
+                    }
+                    let (a, b) = (outs.next(), outs.next());
+                    let (a, b) = (a.expect("a lower run"), b.expect("an upper run"));
+                    b.iter()
+                        .zip(&a)
+                        .map(|(b, a)| (b - a) / (2.0 * FD_STEP))
+                        .collect()
+                })
+                .collect(),
+        )
     }
     /// The one-mode grid of the plain filter (each path's second mode at no share) at the
     /// hold that costs least of held, half and ramped; then, at the best of its modes, a grid

@@ -375,6 +375,17 @@ pub trait FilterFit: Send + Sync {
     fn derivative_path(&self, th: &[f64], x: &[f64], q: usize, _path: usize) -> Vec<f64> {
         self.derivative(th, x, q)
     }
+    /// [`FilterFit::derivative_path`] of each parameter in `qs`, where the filter computes them
+    /// together faster than one at a time (the same values); `None` asks for them one at a time.
+    fn derivatives_path(
+        &self,
+        _th: &[f64],
+        _x: &[f64],
+        _qs: &[usize],
+        _path: usize,
+    ) -> Option<Vec<Vec<f64>>> {
+        None
+    }
     /// The fitted filter of path `path` as a plant-file spec (a per-path filter's).
     fn path_spec(&self, th: &[f64], _path: usize) -> Box<dyn EffectSpec> {
         self.spec(th)

@@ -1584,6 +1584,7 @@ impl TermFit for OutputMapTerm<'_> {
 struct BoucWenTerm<'a> {
     u: &'a [f64],
     bw: Bw,
+    bw_memo: BwMemo,
 }
 
 impl TermFit for BoucWenTerm<'_> {
@@ -1600,10 +1601,11 @@ impl TermFit for BoucWenTerm<'_> {
         bouc_wen_grid()
     }
     fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>> {
-        vec![(Cow::Owned(bw_column(self.u, self.bw, th)), true)]
+        let c = bw_memoized(self.u, self.bw, th, &self.bw_memo);
+        vec![(Cow::Owned(c.to_vec()), true)]
     }
     fn derivative(&self, th: &[f64], q: usize, coef: &[f64]) -> Vec<f64> {
-        let base = bw_column(self.u, self.bw, th);
+        let base = bw_memoized(self.u, self.bw, th, &self.bw_memo);
         bouc_wen_derivative(self.u, th, q, self.bw, &base, coef[0])
     }
     fn spec(&self, th: &[f64], gain: f64, coef: &[f64]) -> TermSpec {
@@ -1727,6 +1729,7 @@ impl Effect for HysteresisEffect {
                     range: max_abs(&seen),
                     sign: setup.sign,
                 },
+                bw_memo: BwMemo::default(),
             }),
             v => {
                 // the input's distinct levels, sorted once for the plays and the knots

@@ -1614,19 +1614,36 @@ impl<'a> OutputProblem<'a> {
                     .map(|(c, w)| apply_chain(&c[..i], w))
                     .collect(),
             );
+            // every parameter's derivative on each chain, where the filter computes them
+            // together ([`FilterFit::derivatives_path`]): by the first job that asks
+            let together: std::sync::Arc<std::sync::OnceLock<Option<Vec<Vec<Vec<f64>>>>>> =
+                Default::default();
             for q in 0..f.params.len() {
-                let xs = xs.clone();
+                let (xs, together) = (xs.clone(), together.clone());
                 jobs.push((
                     f.params.start + q,
                     Box::new(move || {
                         let th_f = &th[f.params.clone()];
+                        let qs: Vec<usize> = (0..f.params.len()).collect();
+                        let together = together.get_or_init(|| {
+                            let of = |(p, x): (usize, &Vec<f64>)| {
+                                let p = if per_path { p } else { 0 };
+                                f.filter.derivatives_path(th_f, x, &qs, p)
+                            };
+                            xs.iter().enumerate().map(of).collect()
+                        });
+                        let derivative = |p: usize, x: &[f64]| match together {
+                            Some(d) => d[p][q].clone(),
+                            None if per_path => f.filter.derivative_path(th_f, x, q, p),
+                            None => f.filter.derivative(th_f, x, q),
+                        };
                         if !per_path {
-                            let d = f.filter.derivative(th_f, &xs[0], q);
+                            let d = derivative(0, &xs[0]);
                             return apply_chain_owned(&chain_of[0][i + 1..], d);
                         }
                         let mut sum = vec![0.0; n];
                         for (p, x) in xs.iter().enumerate() {
-                            let d = f.filter.derivative_path(th_f, x, q, p);
+                            let d = derivative(p, x);
                             let d = apply_chain_owned(&chain_of[p][i + 1..], d);
                             sum.iter_mut().zip(&d).for_each(|(s, v)| *s += v);
                         }

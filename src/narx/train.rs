@@ -589,11 +589,196 @@ impl SimWorkspace {
     }
 }
 
+/// A network's forward and backward passes of one sample, as [`Mlp::forward`] and
+/// [`Mlp::backward`] (with the input's gradient) give them.
+trait Pass {
+    fn forward(&self, x: &[f64], acts: &mut [f64]);
+    /// Adds d(loss)/d(params) to `grad` for the output's gradient `gout` and writes
+    /// d(loss)/dx into `gx` (`scratch`: `2 * max_width()` values).
+    fn backward(
+        &self,
+        x: &[f64],
+        acts: &[f64],
+        gout: f64,
+        grad: &mut [f64],
+        gx: &mut [f64],
+        scratch: &mut [f64],
+    );
+}
+
+impl Pass for Mlp {
+    #[inline(always)]
+    fn forward(&self, x: &[f64], acts: &mut [f64]) {
+        Mlp::forward(self, x, acts);
+    }
+    #[inline(always)]
+    fn backward(
+        &self,
+        x: &[f64],
+        acts: &[f64],
+        gout: f64,
+        grad: &mut [f64],
+        gx: &mut [f64],
+        scratch: &mut [f64],
+    ) {
+        Mlp::backward(self, x, acts, &[gout], grad, Some(gx), scratch);
+    }
+}
+
+/// A one-hidden-layer network of one output packed for [`Pass`]: W1 by groups of [`V`] neurons
+/// (padded with zeros), group c holding, for each regressor in order, its [`V`] weights, so
+/// that a group's sums run in the lanes of one register. Each neuron's sum, the output's and
+/// every gradient take [`Mlp`]'s operations in [`Mlp`]'s order: the same bits.
+struct InOrder<'a> {
+    mlp: &'a Mlp,
+    /// Regressors and hidden neurons.
+    p: usize,
+    h: usize,
+    w1c: Vec<f64>,
+    b1p: Vec<f64>,
+}
+
+impl<'a> InOrder<'a> {
+    /// `None` unless `mlp` has one hidden layer and one output.
+    fn new(mlp: &'a Mlp) -> Option<InOrder<'a>> {
+        if mlp.sizes.len() != 3 || mlp.sizes[2] != 1 {
+            return None;
+        }
+        let (p, h) = (mlp.sizes[0], mlp.sizes[1]);
+        let hp = h.div_ceil(V) * V;
+        let mut w1c = vec![0.0; hp * p];
+        for o in 0..h {
+            let (c, l) = (o / V, o % V);
+            for j in 0..p {
+                w1c[(c * p + j) * V + l] = mlp.params[o * p + j];
+            }
+        }
+        let mut b1p = vec![0.0; hp];
+        b1p[..h].copy_from_slice(&mlp.params[p * h..p * h + h]);
+        Some(InOrder {
+            mlp,
+            p,
+            h,
+            w1c,
+            b1p,
+        })
+    }
+}
+
+impl Pass for InOrder<'_> {
+    #[inline(always)]
+    fn forward(&self, x: &[f64], acts: &mut [f64]) {
+        let (p, h) = (self.p, self.h);
+        let params = &self.mlp.params;
+        for (c, (bc, wc)) in self
+            .b1p
+            .chunks_exact(V)
+            .zip(self.w1c.chunks_exact(p * V))
+            .enumerate()
+        {
+            let mut a = [bc[0], bc[1], bc[2], bc[3]];
+            for (wj, &xj) in wc.chunks_exact(V).zip(x) {
+                for l in 0..V {
+                    a[l] += wj[l] * xj;
+                }
+            }
+            for (l, &v) in a.iter().enumerate().take(h.saturating_sub(c * V)) {
+                acts[c * V + l] = super::mlp::tanh(v);
+            }
+        }
+        let w2 = &params[p * h + h..p * h + 2 * h];
+        let mut out = params[p * h + 2 * h];
+        for (w, a) in w2.iter().zip(&acts[..h]) {
+            out += w * a;
+        }
+        acts[h] = out;
+        if self.mlp.bypass {
+            let mut s = 0.0;
+            for (w, xi) in params[self.mlp.bypass_offset()..].iter().zip(&x[..p]) {
+                s += w * xi;
+            }
+            acts[h] += s;
+        }
+    }
+    #[inline(always)]
+    fn backward(
+        &self,
+        x: &[f64],
+        acts: &[f64],
+        d: f64,
+        grad: &mut [f64],
+        gx: &mut [f64],
+        scratch: &mut [f64],
+    ) {
+        let (p, h) = (self.p, self.h);
+        let params = &self.mlp.params;
+        let (act, delta) = (&acts[..h], &mut scratch[..h]);
+        // the output layer: its gradient, then each neuron's delta
+        let o2 = p * h + h;
+        grad[o2 + h] += d;
+        for (g, a) in grad[o2..o2 + h].iter_mut().zip(act) {
+            *g += d * a;
+        }
+        for ((dl, w), a) in delta.iter_mut().zip(&params[o2..o2 + h]).zip(act) {
+            let v = 0.0 + d * w;
+            *dl = v * (1.0 - a * a);
+        }
+        // the hidden layer: its gradient, then the input's
+        let (gw, gb) = grad[..p * h + h].split_at_mut(p * h);
+        for ((grow, gbo), &dl) in gw.chunks_exact_mut(p).zip(gb.iter_mut()).zip(delta.iter()) {
+            *gbo += dl;
+            for (g, xi) in grow.iter_mut().zip(x) {
+                *g += dl * xi;
+            }
+        }
+        let gx = &mut gx[..p];
+        gx.iter_mut().for_each(|v| *v = 0.0);
+        for (row, &dl) in params[..p * h].chunks_exact(p).zip(delta.iter()) {
+            for (v, w) in gx.iter_mut().zip(row) {
+                *v += dl * w;
+            }
+        }
+        if self.mlp.bypass {
+            let b = self.mlp.bypass_offset();
+            for (g, xi) in grad[b..b + p].iter_mut().zip(x) {
+                *g += d * xi;
+            }
+            for (gi, w) in gx.iter_mut().zip(&params[b..b + p]) {
+                *gi += d * w;
+            }
+        }
+    }
+}
+
 /// Simulation error over the window `s0..s0 + len` (which starts from measured outputs) and its
 /// exact gradient (added to `grad`, unnormalised: d/dθ sum e^2). Returns (sum e^2, samples).
-/// A window whose simulation leaves `[-bound, bound]` is cut there.
+/// A window whose simulation leaves `[-bound, bound]` is cut there. A network of one hidden
+/// layer runs packed ([`InOrder`]), built for AVX2 where the processor has it: the same bits.
 #[allow(clippy::too_many_arguments)]
 fn window_gradient(
+    mlp: &Mlp,
+    reg: &Regressor,
+    s: &Series,
+    s0: usize,
+    len: usize,
+    bound: f64,
+    grad: &mut [f64],
+    ws: &mut SimWorkspace,
+) -> (f64, usize) {
+    match InOrder::new(mlp) {
+        Some(net) => crate::numeric::simd::wide(
+            #[inline(always)]
+            || window_gradient_of(&net, mlp, reg, s, s0, len, bound, grad, ws),
+        ),
+        None => window_gradient_of(mlp, mlp, reg, s, s0, len, bound, grad, ws),
+    }
+}
+
+/// The body of [`window_gradient`] for the passes of `net` (the network `mlp`).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn window_gradient_of(
+    net: &impl Pass,
     mlp: &Mlp,
     reg: &Regressor,
     s: &Series,
@@ -617,7 +802,7 @@ fn window_gradient(
         reg.fill_outputs(&ws.yb, ny + t, x);
         reg.fill_inputs(&s.u, k, x);
         let acts = &mut ws.acts[t * na..(t + 1) * na];
-        mlp.forward(x, acts);
+        net.forward(x, acts);
         let v = reg.base(&ws.yb, ny + t) + sc * acts[na - 1];
         if v.is_nan() || v.abs() > bound {
             n_eff = t;
@@ -633,7 +818,7 @@ fn window_gradient(
         let gz = 2.0 * e + ws.carry[t];
         let x = &ws.xs[t * p..(t + 1) * p];
         let acts = &ws.acts[t * na..(t + 1) * na];
-        mlp.backward(x, acts, &[gz * sc], grad, Some(&mut ws.gx), &mut ws.scratch);
+        net.backward(x, acts, gz * sc, grad, &mut ws.gx, &mut ws.scratch);
         reg.output_lag_gradient(gz, &ws.gx, &mut ws.glag);
         for j in 0..ny.min(t) {
             ws.carry[t - 1 - j] += ws.glag[j];
