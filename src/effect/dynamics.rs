@@ -185,7 +185,46 @@ pub struct Discrete {
 
 /// A mode (f, zeta) of static gain `gain` at sampling period `ts` under a blend `hold` of
 /// the zero-order (0) and first-order (1) holds; `field` names the frequency in errors.
+/// The last [`RECENT_MODES`] modes discretised on this thread are kept (a fit's central
+/// differences move one mode of two at a time, and its evaluations and Jacobians prepare the
+/// filters at the same parameters): the same values, without the matrix exponential.
 fn discretise_mode(
+    f: f64,
+    z: f64,
+    gain: f64,
+    hold: f64,
+    ts: f64,
+    field: &str,
+) -> Result<Discrete, EffectError> {
+    type Recent = [Option<([u64; 5], Discrete)>; RECENT_MODES];
+    thread_local! {
+        static RECENT: std::cell::RefCell<(Recent, usize)> =
+            const { std::cell::RefCell::new(([None; RECENT_MODES], 0)) };
+    }
+    let key = [f, z, gain, hold, ts].map(f64::to_bits);
+    let found = RECENT.with_borrow(|(recent, _)| {
+        recent
+            .iter()
+            .flatten()
+            .find(|(k, _)| *k == key)
+            .map(|(_, d)| *d)
+    });
+    if let Some(d) = found {
+        return Ok(d);
+    }
+    let d = discretise_mode_anew(f, z, gain, hold, ts, field)?;
+    RECENT.with_borrow_mut(|(recent, next)| {
+        recent[*next] = Some((key, d));
+        *next = (*next + 1) % RECENT_MODES;
+    });
+    Ok(d)
+}
+
+/// How many modes [`discretise_mode`] keeps on each thread.
+const RECENT_MODES: usize = 16;
+
+/// [`discretise_mode`] computed.
+fn discretise_mode_anew(
     f: f64,
     z: f64,
     gain: f64,
