@@ -42,6 +42,9 @@ use std::ops::Range;
 type PieceVisit<'v> = dyn FnMut(Range<usize>, &[&[f64]]) + 'v;
 
 /// One column of the Jacobian: d yhat / d theta of one parameter, before projection.
+/// A filter's derivatives on each chain, each parameter's ([`FilterFit::derivatives_path`]).
+type PathDerivatives = Vec<Vec<Vec<f64>>>;
+
 type JacobianJob<'a> = Box<dyn Fn() -> Vec<f64> + Sync + 'a>;
 
 /// A term of a path, with where its columns and parameters are.
@@ -1616,7 +1619,7 @@ impl<'a> OutputProblem<'a> {
             );
             // every parameter's derivative on each chain, where the filter computes them
             // together ([`FilterFit::derivatives_path`]): by the first job that asks
-            let together: std::sync::Arc<std::sync::OnceLock<Option<Vec<Vec<Vec<f64>>>>>> =
+            let together: std::sync::Arc<std::sync::OnceLock<Option<PathDerivatives>>> =
                 Default::default();
             for q in 0..f.params.len() {
                 let (xs, together) = (xs.clone(), together.clone());
