@@ -43,30 +43,31 @@ pub fn tanh(x: f64) -> f64 {
     1.0 - 2.0 / (exp_reduced(2.0 * x) + 1.0)
 }
 
+const LOG2E: f64 = std::f64::consts::LOG2_E;
+/// 1.5 * 2^52: adding it rounds to an integer, kept in the low bits of the mantissa
+const ROUND: f64 = 6_755_399_441_055_744.0;
+/// ln 2 split so that k * LN2_HI is exact (fdlibm)
+const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
+const LN2_LO: f64 = f64::from_bits(0x3dea_39ef_3579_3c76);
+/// 1/k! for k = 2..=13
+const C: [f64; 12] = [
+    1.0 / 2.0,
+    1.0 / 6.0,
+    1.0 / 24.0,
+    1.0 / 120.0,
+    1.0 / 720.0,
+    1.0 / 5040.0,
+    1.0 / 40320.0,
+    1.0 / 362880.0,
+    1.0 / 3628800.0,
+    1.0 / 39916800.0,
+    1.0 / 479001600.0,
+    1.0 / 6227020800.0,
+];
+
 /// exp(y) for |y| <= 40 (see [`tanh`]).
 #[inline(always)]
 fn exp_reduced(y: f64) -> f64 {
-    const LOG2E: f64 = std::f64::consts::LOG2_E;
-    // 1.5 * 2^52: adding it rounds to an integer, kept in the low bits of the mantissa
-    const ROUND: f64 = 6_755_399_441_055_744.0;
-    // ln 2 split so that k * LN2_HI is exact (fdlibm)
-    const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
-    const LN2_LO: f64 = f64::from_bits(0x3dea_39ef_3579_3c76);
-    // 1/k! for k = 2..=13
-    const C: [f64; 12] = [
-        1.0 / 2.0,
-        1.0 / 6.0,
-        1.0 / 24.0,
-        1.0 / 120.0,
-        1.0 / 720.0,
-        1.0 / 5040.0,
-        1.0 / 40320.0,
-        1.0 / 362880.0,
-        1.0 / 3628800.0,
-        1.0 / 39916800.0,
-        1.0 / 479001600.0,
-        1.0 / 6227020800.0,
-    ];
     let t = y * LOG2E + ROUND;
     let k = t - ROUND;
     let r = (y - k * LN2_HI) - k * LN2_LO;
@@ -88,6 +89,51 @@ fn exp_reduced(y: f64) -> f64 {
     // 2^k: the low bits of t hold k (two's complement); add the bias and shift into the exponent
     let scale = f64::from_bits(t.to_bits().wrapping_add(1023) << 52);
     q * scale
+}
+
+/// [`tanh`] of four values in the lanes of an AVX2 register: its operations in its order, lane
+/// by lane (the same bits).
+///
+/// # Safety
+/// The processor has AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+pub unsafe fn tanh_4(x: [f64; 4]) -> [f64; 4] {
+    use std::arch::x86_64::*;
+    let set = _mm256_set1_pd;
+    let (add, sub, mul) = (_mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd);
+    // SAFETY: four doubles
+    let x = unsafe { _mm256_loadu_pd(x.as_ptr()) };
+    // f64::clamp: below -20 to -20, then above 20 to 20 (NaN stays NaN)
+    let lo = set(-20.0);
+    let x = _mm256_blendv_pd(x, lo, _mm256_cmp_pd::<_CMP_LT_OQ>(x, lo));
+    let hi = set(20.0);
+    let x = _mm256_blendv_pd(x, hi, _mm256_cmp_pd::<_CMP_GT_OQ>(x, hi));
+    let y = mul(set(2.0), x);
+    // exp_reduced(y)
+    let t = add(mul(y, set(LOG2E)), set(ROUND));
+    let k = sub(t, set(ROUND));
+    let r = sub(sub(y, mul(k, set(LN2_HI))), mul(k, set(LN2_LO)));
+    let r2 = mul(r, r);
+    let r4 = mul(r2, r2);
+    let e = |i: usize| add(set(C[i]), mul(set(C[i + 1]), r));
+    let (e0, e1, e2, e3, e4, e5) = (e(0), e(2), e(4), e(6), e(8), e(10));
+    let f0 = add(e0, mul(e1, r2));
+    let f1 = add(e2, mul(e3, r2));
+    let f2 = add(e4, mul(e5, r2));
+    let p = add(f0, mul(r4, add(f1, mul(r4, f2))));
+    let one = set(1.0);
+    let q = add(one, mul(r, add(one, mul(r, p))));
+    let bits = _mm256_slli_epi64::<52>(_mm256_add_epi64(
+        _mm256_castpd_si256(t),
+        _mm256_set1_epi64x(1023),
+    ));
+    let e = mul(q, _mm256_castsi256_pd(bits));
+    let out = sub(one, _mm256_div_pd(set(2.0), add(e, one)));
+    let mut o = [0.0; 4];
+    // SAFETY: four doubles
+    unsafe { _mm256_storeu_pd(o.as_mut_ptr(), out) };
+    o
 }
 
 /// Number of parameters of a shape.
