@@ -1891,6 +1891,78 @@ mod tests {
         );
     }
 
+    /// Signals each with its own two modes, side by side in register lanes (eight, then four,
+    /// then alone: 13 signals, one of another length), give the bits of each filtered alone.
+    #[test]
+    fn two_modes_side_by_side_equal_each_alone() {
+        let ts = 1e-3;
+        let modes: Vec<(Discrete, Discrete)> = (0..13)
+            .map(|i| {
+                let f = 10.0 + 7.0 * i as f64;
+                let h = if i % 3 == 0 { 0.0 } else { 0.5 };
+                (
+                    discretise_mode(f, 0.05 + 0.01 * i as f64, 0.7, h, ts, "f").unwrap(),
+                    discretise_mode(3.0 * f, 0.2, 0.3, h, ts, "f").unwrap(),
+                )
+            })
+            .collect();
+        let signal = |i: usize, n: usize| -> Vec<f64> {
+            (0..n)
+                .map(|k| ((k * (i + 1)) as f64 * 0.013).sin() + 0.1 * i as f64)
+                .collect()
+        };
+        for odd in [None, Some(9)] {
+            let lens: Vec<usize> = (0..13)
+                .map(|i| if Some(i) == odd { 1001 } else { 1003 })
+                .collect();
+            let mut side: Vec<Vec<f64>> = (0..13).map(|i| signal(i, lens[i])).collect();
+            let mut alone = side.clone();
+            let pairs: Vec<ModePair<'_>> = modes.iter().map(|(a, b)| (a, b)).collect();
+            let mut cols: Vec<&mut [f64]> = side.iter_mut().map(|c| c.as_mut_slice()).collect();
+            let mut states = vec![FilterState::new(); 13];
+            two_modes_each(&pairs, &mut cols, &mut states);
+            for (i, c) in alone.iter_mut().enumerate() {
+                let mut st = FilterState::new();
+                two_modes(&modes[i].0, &modes[i].1, c, &mut st);
+                assert_eq!(st, states[i], "signal {i}: state");
+            }
+            for i in 0..13 {
+                let same = side[i]
+                    .iter()
+                    .zip(&alone[i])
+                    .all(|(a, b)| a.to_bits() == b.to_bits());
+                assert!(same, "signal {i} (odd length at {odd:?})");
+            }
+        }
+    }
+
+    /// The modes filter's derivatives computed together give the bits of each alone (and
+    /// zeros for another path's share).
+    #[test]
+    fn modes_derivatives_together_equal_each_alone() {
+        let filter = ModesFilter {
+            ts: 1e-3,
+            f_bounds: (0.5, 400.0),
+            z_bounds: (0.005, 2.0),
+            paths: 2,
+        };
+        let th = filter.params_of((35.0, 0.08), 0.4, (120.0, 0.05), 0.2);
+        let x: Vec<f64> = (0..777).map(|k| (k as f64 * 0.021).sin().powi(3)).collect();
+        let qs: Vec<usize> = (0..filter.n_params()).collect();
+        for path in 0..2 {
+            let together = filter.derivatives_path(&th, &x, &qs, path).unwrap();
+            for &q in &qs {
+                let alone = filter.derivative_path(&th, &x, q, path);
+                let same = together[q]
+                    .iter()
+                    .zip(&alone)
+                    .all(|(a, b)| a.to_bits() == b.to_bits());
+                assert!(same, "path {path}, parameter {q}");
+            }
+            assert!(together[MODES_SHARED + 1 - path].iter().all(|&v| v == 0.0));
+        }
+    }
+
     #[test]
     fn negative_damping_rejected() {
         let s = DynamicsSpec {

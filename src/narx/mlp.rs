@@ -376,6 +376,33 @@ impl Mlp {
 mod tests {
     use super::*;
 
+    /// tanh four at a time in AVX2 lanes gives tanh's bits, through the clamp, at 0, at the
+    /// infinities and for NaN.
+    #[test]
+    fn tanh_in_lanes_equals_tanh() {
+        if !crate::numeric::simd::uses_avx2() {
+            return;
+        }
+        let mut xs: Vec<f64> = (-4000..4000).map(|k| k as f64 * 0.00617).collect();
+        xs.extend([0.0, -0.0, 19.1, 20.0, 20.5, -20.5, 1e300, -1e300]);
+        xs.extend([f64::INFINITY, f64::NEG_INFINITY, f64::NAN, 1e-310]);
+        for c in xs.chunks(4) {
+            let x: [f64; 4] = std::array::from_fn(|l| c.get(l).copied().unwrap_or(0.3));
+            // SAFETY: the processor has AVX2 (checked above)
+            let lanes = unsafe { tanh_4(x) };
+            for l in 0..4 {
+                let one = tanh(x[l]);
+                assert!(
+                    lanes[l].to_bits() == one.to_bits() || (lanes[l].is_nan() && one.is_nan()),
+                    "tanh({}) = {} in lanes, {} alone",
+                    x[l],
+                    lanes[l],
+                    one
+                );
+            }
+        }
+    }
+
     fn loss(m: &Mlp, x: &[f64], t: &[f64]) -> f64 {
         let mut acts = vec![0.0; m.acts_len()];
         m.forward(x, &mut acts);

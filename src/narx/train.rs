@@ -1062,6 +1062,44 @@ mod tests {
         }
     }
 
+    /// The packed passes of a window ([`InOrder`], in AVX2 lanes where the processor has them)
+    /// give the bits of [`Mlp`]'s own, with and without the bypass, for 1 to 9 neurons, and
+    /// over a window cut where its simulation leaves the bound.
+    #[test]
+    fn packed_window_passes_equal_the_network_s_own() {
+        let s = series(120, 2);
+        let reg = Regressor::fit(lags(3, 2), RegressorForm::Incremental, &s);
+        for (h, bypass, bound) in [
+            (1, true, 1e9),
+            (4, false, 1e9),
+            (9, true, 1e9),
+            (6, true, 0.5),
+        ] {
+            let mut m = Mlp::glorot(&[reg.width(), h, 1], bypass, h as u64);
+            let mut r = Xoshiro256PlusPlus::seed_from_u64(3);
+            for p in m.params.iter_mut() {
+                *p = 0.4 * *p + 0.2 * (uniform01(&mut r) - 0.5);
+            }
+            let len = 100;
+            let (mut wa, mut wb) = (
+                SimWorkspace::new(&m, &reg, len),
+                SimWorkspace::new(&m, &reg, len),
+            );
+            let (mut ga, mut gb) = (vec![0.0; m.params.len()], vec![0.0; m.params.len()]);
+            let net = InOrder::new(&m).expect("one hidden layer");
+            let a = crate::numeric::simd::wide(|| {
+                window_gradient_of(&net, &m, &reg, &s, 5, len, bound, &mut ga, &mut wa)
+            });
+            let b = window_gradient_of(&m, &m, &reg, &s, 5, len, bound, &mut gb, &mut wb);
+            assert_eq!(a.1, b.1, "{h} neurons: samples");
+            assert_eq!(a.0.to_bits(), b.0.to_bits(), "{h} neurons: sum of squares");
+            assert!(
+                ga.iter().zip(&gb).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{h} neurons"
+            );
+        }
+    }
+
     #[test]
     fn fast_free_run_equals_plain_free_run_and_window_simulation() {
         let lags = lags(4, 3);
