@@ -1050,6 +1050,32 @@ fn two_modes_each(modes: &[ModePair<'_>], cols: &mut [&mut [f64]], states: &mut 
     }
 }
 
+/// The coefficients of each lane's two modes (`m[l]` for lane `l`), coefficient by
+/// coefficient: the first mode's Phi (row by row), Gamma and d, then the second's.
+#[cfg(target_arch = "x86_64")]
+fn lane_coefficients<const L: usize>(m: &[ModePair<'_>]) -> [[f64; L]; 14] {
+    let of = |(a, b): &ModePair<'_>| {
+        [
+            a.phi[(0, 0)],
+            a.phi[(0, 1)],
+            a.phi[(1, 0)],
+            a.phi[(1, 1)],
+            a.gamma[0],
+            a.gamma[1],
+            a.d,
+            b.phi[(0, 0)],
+            b.phi[(0, 1)],
+            b.phi[(1, 0)],
+            b.phi[(1, 1)],
+            b.gamma[0],
+            b.gamma[1],
+            b.d,
+        ]
+    };
+    let each: [[f64; 14]; L] = std::array::from_fn(|l| of(&m[l]));
+    std::array::from_fn(|i| std::array::from_fn(|l| each[l][i]))
+}
+
 /// [`two_modes`] on four signals of one length, each with its own modes (`m[l]`), states `x`
 /// (`[x1, x2, x3, x4]` each, updated): AVX2 lanes over whole blocks of four samples, the rest
 /// alone.
@@ -1060,27 +1086,10 @@ unsafe fn two_modes_4(m: &[ModePair<'_>], cols: &mut [&mut [f64]], x: &mut [[f64
     let n = cols[0].len();
     assert!(m.len() == 4 && cols.len() == 4 && cols.iter().all(|c| c.len() == n));
     let full = n - n % 4;
-    let lane = |f: fn(&ModePair<'_>) -> f64| _mm256_set_pd(f(&m[3]), f(&m[2]), f(&m[1]), f(&m[0]));
-    let pa = [
-        lane(|m| m.0.phi[(0, 0)]),
-        lane(|m| m.0.phi[(0, 1)]),
-        lane(|m| m.0.phi[(1, 0)]),
-        lane(|m| m.0.phi[(1, 1)]),
-    ];
-    let (ga, ad) = (
-        [lane(|m| m.0.gamma[0]), lane(|m| m.0.gamma[1])],
-        lane(|m| m.0.d),
-    );
-    let pb = [
-        lane(|m| m.1.phi[(0, 0)]),
-        lane(|m| m.1.phi[(0, 1)]),
-        lane(|m| m.1.phi[(1, 0)]),
-        lane(|m| m.1.phi[(1, 1)]),
-    ];
-    let (gb, bd) = (
-        [lane(|m| m.1.gamma[0]), lane(|m| m.1.gamma[1])],
-        lane(|m| m.1.d),
-    );
+    // SAFETY: four doubles each
+    let c = lane_coefficients::<4>(m).map(|v| unsafe { _mm256_loadu_pd(v.as_ptr()) });
+    let (pa, ga, ad) = ([c[0], c[1], c[2], c[3]], [c[4], c[5]], c[6]);
+    let (pb, gb, bd) = ([c[7], c[8], c[9], c[10]], [c[11], c[12]], c[13]);
     let lanes = |i: usize| _mm256_set_pd(x[3][i], x[2][i], x[1][i], x[0][i]);
     let (mut x0, mut x1, mut z0, mut z1) = (lanes(0), lanes(1), lanes(2), lanes(3));
     let ptrs: [*mut f64; 4] = std::array::from_fn(|l| cols[l].as_mut_ptr());
@@ -1122,38 +1131,10 @@ unsafe fn two_modes_8(m: &[ModePair<'_>], cols: &mut [&mut [f64]], x: &mut [[f64
     let n = cols[0].len();
     assert!(m.len() == 8 && cols.len() == 8 && cols.iter().all(|c| c.len() == n));
     let full = n - n % 8;
-    let lane = |f: fn(&ModePair<'_>) -> f64| {
-        _mm512_set_pd(
-            f(&m[7]),
-            f(&m[6]),
-            f(&m[5]),
-            f(&m[4]),
-            f(&m[3]),
-            f(&m[2]),
-            f(&m[1]),
-            f(&m[0]),
-        )
-    };
-    let pa = [
-        lane(|m| m.0.phi[(0, 0)]),
-        lane(|m| m.0.phi[(0, 1)]),
-        lane(|m| m.0.phi[(1, 0)]),
-        lane(|m| m.0.phi[(1, 1)]),
-    ];
-    let (ga, ad) = (
-        [lane(|m| m.0.gamma[0]), lane(|m| m.0.gamma[1])],
-        lane(|m| m.0.d),
-    );
-    let pb = [
-        lane(|m| m.1.phi[(0, 0)]),
-        lane(|m| m.1.phi[(0, 1)]),
-        lane(|m| m.1.phi[(1, 0)]),
-        lane(|m| m.1.phi[(1, 1)]),
-    ];
-    let (gb, bd) = (
-        [lane(|m| m.1.gamma[0]), lane(|m| m.1.gamma[1])],
-        lane(|m| m.1.d),
-    );
+    // SAFETY: eight doubles each
+    let c = lane_coefficients::<8>(m).map(|v| unsafe { _mm512_loadu_pd(v.as_ptr()) });
+    let (pa, ga, ad) = ([c[0], c[1], c[2], c[3]], [c[4], c[5]], c[6]);
+    let (pb, gb, bd) = ([c[7], c[8], c[9], c[10]], [c[11], c[12]], c[13]);
     let lanes = |i: usize| {
         _mm512_set_pd(
             x[7][i], x[6][i], x[5][i], x[4][i], x[3][i], x[2][i], x[1][i], x[0][i],
