@@ -41,10 +41,10 @@ use std::ops::Range;
 /// What a streamed pass hands each piece: its rows and the columns on them.
 type PieceVisit<'v> = dyn FnMut(Range<usize>, &[&[f64]]) + 'v;
 
-/// One column of the Jacobian: d yhat / d theta of one parameter, before projection.
 /// A filter's derivatives on each chain, each parameter's ([`FilterFit::derivatives_path`]).
 type PathDerivatives = Vec<Vec<Vec<f64>>>;
 
+/// One column of the Jacobian: d yhat / d theta of one parameter, before projection.
 type JacobianJob<'a> = Box<dyn Fn() -> Vec<f64> + Sync + 'a>;
 
 /// A term of a path, with where its columns and parameters are.
