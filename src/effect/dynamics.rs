@@ -1234,17 +1234,6 @@ impl ModesFilter {
         ));
         th
     }
-
-    fn filtered(&self, th: &[f64], path: usize, x: &[f64]) -> Vec<f64> {
-        match self.prepare_path(th, path) {
-            Prepared::Apply(f) => {
-                let mut out = x.to_vec();
-                f(&mut [&mut out], &mut [Vec::new()]);
-                out
-            }
-            _ => vec![f64::NAN; x.len()],
-        }
-    }
 }
 
 impl FilterFit for ModesFilter {
@@ -1282,22 +1271,13 @@ impl FilterFit for ModesFilter {
         self.derivative_path(th, x, q, 0)
     }
     fn derivative_path(&self, th: &[f64], x: &[f64], q: usize, path: usize) -> Vec<f64> {
-        if q >= MODES_SHARED && q != MODES_SHARED + path {
-            return vec![0.0; x.len()];
-        }
-        // central differences (as many filter runs as a forward one from `th`)
-        let (mut lo, mut hi) = (th.to_vec(), th.to_vec());
-        lo[q] -= FD_STEP;
-        hi[q] += FD_STEP;
-        let a = self.filtered(&lo, path, x);
-        let b = self.filtered(&hi, path, x);
-        b.iter()
-            .zip(&a)
-            .map(|(b, a)| (b - a) / (2.0 * FD_STEP))
-            .collect()
+        let d = self.derivatives_path(th, x, &[q], path);
+        d.and_then(|d| d.into_iter().next())
+            .expect("one derivative")
     }
-    /// Central differences as [`FilterFit::derivative_path`]'s, every parameter's two runs
-    /// side by side in the lanes of [`two_modes_each`] (each its own modes).
+    /// Central differences (as many filter runs as a forward one from `th`), zeros for another
+    /// path's share; every parameter's two runs side by side in the lanes of [`two_modes_each`]
+    /// (each its own modes).
     fn derivatives_path(
         &self,
         th: &[f64],
@@ -1325,28 +1305,26 @@ impl FilterFit for ModesFilter {
         let mut cols: Vec<&mut [f64]> = filtered.iter_mut().map(|c| c.as_mut_slice()).collect();
         two_modes_each(&valid, &mut cols, &mut vec![Vec::new(); valid.len()]);
         let mut filtered = filtered.into_iter();
-        let mut outs = runs
+        let runs: Vec<Vec<f64>> = runs
             .iter()
             .map(|r| match r {
-                Some(_) => filtered.next(),
-                None => None,
+                Some(_) => filtered.next().expect("a valid run filtered"),
+                None => vec![f64::NAN; x.len()],
             })
-            .map(|c| c.unwrap_or_else(|| vec![f64::NAN; x.len()]));
-        Some(
-            qs.iter()
-                .map(|&q| {
-                    if !moves(q) {
-                        return vec![0.0; x.len()];
-                    }
-                    let (a, b) = (outs.next(), outs.next());
-                    let (a, b) = (a.expect("a lower run"), b.expect("an upper run"));
-                    b.iter()
-                        .zip(&a)
-                        .map(|(b, a)| (b - a) / (2.0 * FD_STEP))
-                        .collect()
-                })
-                .collect(),
-        )
+            .collect();
+        let mut pairs = runs.chunks_exact(2);
+        let mut derivative = |q: usize| {
+            if !moves(q) {
+                return vec![0.0; x.len()];
+            }
+            let r = pairs.next().expect("a moved parameter's two runs");
+            let (lo, hi) = (&r[0], &r[1]);
+            hi.iter()
+                .zip(lo)
+                .map(|(b, a)| (b - a) / (2.0 * FD_STEP))
+                .collect()
+        };
+        Some(qs.iter().map(|&q| derivative(q)).collect())
     }
     /// The one-mode grid of the plain filter (each path's second mode at no share) at the
     /// hold that costs least of held, half and ramped; then, at the best of its modes, a grid
@@ -1930,10 +1908,37 @@ mod tests {
         let th = filter.params_of((35.0, 0.08), 0.4, (120.0, 0.05), 0.2);
         let x: Vec<f64> = (0..777).map(|k| (k as f64 * 0.021).sin().powi(3)).collect();
         let qs: Vec<usize> = (0..filter.n_params()).collect();
+        // a parameter's central difference from the filter prepared at each side, alone
+        let filtered = |th: &[f64], path: usize| match filter.prepare_path(th, path) {
+            Prepared::Apply(f) => {
+                let mut out = x.clone();
+                f(&mut [&mut out], &mut [Vec::new()]);
+                out
+            }
+            _ => vec![f64::NAN; x.len()],
+        };
+        let alone = |q: usize, path: usize| -> Vec<f64> {
+            if q >= MODES_SHARED && q != MODES_SHARED + path {
+                return vec![0.0; x.len()];
+            }
+            let (mut lo, mut hi) = (th.clone(), th.clone());
+            lo[q] -= FD_STEP;
+            hi[q] += FD_STEP;
+            let (a, b) = (filtered(&lo, path), filtered(&hi, path));
+            b.iter()
+                .zip(&a)
+                .map(|(b, a)| (b - a) / (2.0 * FD_STEP))
+                .collect()
+        };
         for path in 0..2 {
             let together = filter.derivatives_path(&th, &x, &qs, path).unwrap();
             for &q in &qs {
-                let alone = filter.derivative_path(&th, &x, q, path);
+                let one = filter.derivative_path(&th, &x, q, path);
+                assert!(one
+                    .iter()
+                    .zip(&together[q])
+                    .all(|(a, b)| a.to_bits() == b.to_bits()));
+                let alone = alone(q, path);
                 let same = together[q]
                     .iter()
                     .zip(&alone)

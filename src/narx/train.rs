@@ -482,23 +482,29 @@ pub(super) struct OneHiddenWork {
 
 const V: usize = 4;
 
+/// A one-hidden-layer network's first layer by groups of [`V`] neurons (padded with zeros):
+/// group c holds, for each regressor in `order`, its [`V`] weights; then the biases, padded.
+fn pack_hidden(mlp: &Mlp, order: &[usize]) -> (Vec<f64>, Vec<f64>) {
+    let (p, h) = (mlp.sizes[0], mlp.sizes[1]);
+    let hp = h.div_ceil(V) * V;
+    let mut w1c = vec![0.0; hp * p];
+    for o in 0..h {
+        let (c, l) = (o / V, o % V);
+        for (jj, &j) in order.iter().enumerate() {
+            w1c[(c * p + jj) * V + l] = mlp.params[o * p + j];
+        }
+    }
+    let mut b1p = vec![0.0; hp];
+    b1p[..h].copy_from_slice(&mlp.params[p * h..p * h + h]);
+    (w1c, b1p)
+}
+
 impl OneHidden {
     /// `mlp` must have one hidden layer (`mlp.sizes.len() == 3`); `ny` output lags.
     pub fn new(mlp: &Mlp, ny: usize) -> OneHidden {
         let (p, h) = (mlp.sizes[0], mlp.sizes[1]);
-        let w1 = &mlp.params[..p * h];
-        let b1 = &mlp.params[p * h..p * h + h];
-        let hp = h.div_ceil(V) * V;
         let order: Vec<usize> = (ny..p).chain(0..ny).collect();
-        let mut w1c = vec![0.0; hp * p];
-        for o in 0..h {
-            let (c, l) = (o / V, o % V);
-            for (jj, &j) in order.iter().enumerate() {
-                w1c[(c * p + jj) * V + l] = w1[o * p + j];
-            }
-        }
-        let mut b1p = vec![0.0; hp];
-        b1p[..h].copy_from_slice(b1);
+        let (w1c, b1p) = pack_hidden(mlp, &order);
         let (wsu, wsy) = if mlp.bypass {
             let ws = &mlp.params[mlp.bypass_offset()..];
             (ws[ny..].to_vec(), ws[..ny].to_vec())
@@ -589,21 +595,9 @@ impl SimWorkspace {
     }
 }
 
-/// A network's forward and backward passes of one sample, as [`Mlp::forward`] and
-/// [`Mlp::backward`] (with the input's gradient) give them.
+/// A network's forward pass of one sample, as [`Mlp::forward`] gives it.
 trait Pass {
     fn forward(&self, x: &[f64], acts: &mut [f64]);
-    /// Adds d(loss)/d(params) to `grad` for the output's gradient `gout` and writes
-    /// d(loss)/dx into `gx` (`scratch`: `2 * max_width()` values).
-    fn backward(
-        &self,
-        x: &[f64],
-        acts: &[f64],
-        gout: f64,
-        grad: &mut [f64],
-        gx: &mut [f64],
-        scratch: &mut [f64],
-    );
 }
 
 impl Pass for Mlp {
@@ -611,24 +605,12 @@ impl Pass for Mlp {
     fn forward(&self, x: &[f64], acts: &mut [f64]) {
         Mlp::forward(self, x, acts);
     }
-    #[inline(always)]
-    fn backward(
-        &self,
-        x: &[f64],
-        acts: &[f64],
-        gout: f64,
-        grad: &mut [f64],
-        gx: &mut [f64],
-        scratch: &mut [f64],
-    ) {
-        Mlp::backward(self, x, acts, &[gout], grad, Some(gx), scratch);
-    }
 }
 
 /// A one-hidden-layer network of one output packed for [`Pass`]: W1 by groups of [`V`] neurons
-/// (padded with zeros), group c holding, for each regressor in order, its [`V`] weights, so
-/// that a group's sums run in the lanes of one register. Each neuron's sum, the output's and
-/// every gradient take [`Mlp`]'s operations in [`Mlp`]'s order: the same bits.
+/// ([`pack_hidden`], the regressors in order), so that a group's sums run in the lanes of one
+/// register. Each neuron's sum and the output's take [`Mlp::forward`]'s operations in its
+/// order: the same bits.
 struct InOrder<'a> {
     mlp: &'a Mlp,
     /// Regressors and hidden neurons.
@@ -658,16 +640,7 @@ impl<'a> InOrder<'a> {
             return None;
         }
         let (p, h) = (mlp.sizes[0], mlp.sizes[1]);
-        let hp = h.div_ceil(V) * V;
-        let mut w1c = vec![0.0; hp * p];
-        for o in 0..h {
-            let (c, l) = (o / V, o % V);
-            for j in 0..p {
-                w1c[(c * p + j) * V + l] = mlp.params[o * p + j];
-            }
-        }
-        let mut b1p = vec![0.0; hp];
-        b1p[..h].copy_from_slice(&mlp.params[p * h..p * h + h]);
+        let (w1c, b1p) = pack_hidden(mlp, &(0..p).collect::<Vec<_>>());
         Some(InOrder {
             mlp,
             p,
@@ -715,54 +688,6 @@ impl Pass for InOrder<'_> {
             acts[h] += s;
         }
     }
-    #[inline(always)]
-    fn backward(
-        &self,
-        x: &[f64],
-        acts: &[f64],
-        d: f64,
-        grad: &mut [f64],
-        gx: &mut [f64],
-        scratch: &mut [f64],
-    ) {
-        let (p, h) = (self.p, self.h);
-        let params = &self.mlp.params;
-        let (act, delta) = (&acts[..h], &mut scratch[..h]);
-        // the output layer: its gradient, then each neuron's delta
-        let o2 = p * h + h;
-        grad[o2 + h] += d;
-        for (g, a) in grad[o2..o2 + h].iter_mut().zip(act) {
-            *g += d * a;
-        }
-        for ((dl, w), a) in delta.iter_mut().zip(&params[o2..o2 + h]).zip(act) {
-            let v = 0.0 + d * w;
-            *dl = v * (1.0 - a * a);
-        }
-        // the hidden layer: its gradient, then the input's
-        let (gw, gb) = grad[..p * h + h].split_at_mut(p * h);
-        for ((grow, gbo), &dl) in gw.chunks_exact_mut(p).zip(gb.iter_mut()).zip(delta.iter()) {
-            *gbo += dl;
-            for (g, xi) in grow.iter_mut().zip(x) {
-                *g += dl * xi;
-            }
-        }
-        let gx = &mut gx[..p];
-        gx.iter_mut().for_each(|v| *v = 0.0);
-        for (row, &dl) in params[..p * h].chunks_exact(p).zip(delta.iter()) {
-            for (v, w) in gx.iter_mut().zip(row) {
-                *v += dl * w;
-            }
-        }
-        if self.mlp.bypass {
-            let b = self.mlp.bypass_offset();
-            for (g, xi) in grad[b..b + p].iter_mut().zip(x) {
-                *g += d * xi;
-            }
-            for (gi, w) in gx.iter_mut().zip(&params[b..b + p]) {
-                *gi += d * w;
-            }
-        }
-    }
 }
 
 /// Simulation error over the window `s0..s0 + len` (which starts from measured outputs) and its
@@ -789,7 +714,7 @@ fn window_gradient(
     }
 }
 
-/// The body of [`window_gradient`] for the passes of `net` (the network `mlp`).
+/// The body of [`window_gradient`] with the forward pass of `net` (the network `mlp`).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn window_gradient_of(
@@ -833,7 +758,7 @@ fn window_gradient_of(
         let gz = 2.0 * e + ws.carry[t];
         let x = &ws.xs[t * p..(t + 1) * p];
         let acts = &ws.acts[t * na..(t + 1) * na];
-        net.backward(x, acts, gz * sc, grad, &mut ws.gx, &mut ws.scratch);
+        mlp.backward(x, acts, &[gz * sc], grad, Some(&mut ws.gx), &mut ws.scratch);
         reg.output_lag_gradient(gz, &ws.gx, &mut ws.glag);
         for j in 0..ny.min(t) {
             ws.carry[t - 1 - j] += ws.glag[j];
@@ -1062,7 +987,7 @@ mod tests {
         }
     }
 
-    /// The packed passes of a window ([`InOrder`], in AVX2 lanes where the processor has them)
+    /// A window with the packed forward pass ([`InOrder`], in AVX2 lanes where the processor has them)
     /// give the bits of [`Mlp`]'s own, with and without the bypass, for 1 to 9 neurons, and
     /// over a window cut where its simulation leaves the bound.
     #[test]
