@@ -29,6 +29,16 @@ pub struct FitOptions {
     /// coefficients at the fitted nonlinear parameters (`OutputProblem::ridge_by_cross_validation`),
     /// then refit with it; `ridge` is then ignored.
     pub choose_ridge: bool,
+    /// Relative ridge on the hysteresis terms of each cross path (0: none), on a record with
+    /// as many inputs as outputs (input i drives output i; the other inputs' paths are its
+    /// cross paths): lambda * ||column||^2 * c^2 joins the cost, times the ratio of the own
+    /// path's gain column energy to the cross path's (as if the cross input moved as much as
+    /// the own one). Where the record cannot tell the paths apart (inputs that move together
+    /// in it), the loop goes to the output's own input, as in a multi-axis actuator whose
+    /// axes are driven mostly by their own inputs; elsewhere its pull is of the order of
+    /// lambda. The cross paths' gains are not shrunk. The identifier's bases use
+    /// `narx::base::BASE_CROSS_RIDGE`.
+    pub cross_ridge: f64,
     /// A record too short for `plays` (about ten samples per parameter) is fitted with the most
     /// of 19, 9, 5 or 3 plays that it supports instead of being refused (a parsimonious model
     /// for a short record); off: `plays` or an error.
@@ -90,6 +100,7 @@ impl Default for FitOptions {
             held_out: None,
             ridge: 0.0,
             choose_ridge: false,
+            cross_ridge: 0.0,
             adapt_plays: true,
             output_map: true,
             envelope_split: false,

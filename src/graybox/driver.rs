@@ -925,6 +925,10 @@ impl GreyBoxConfig {
                 }
                 BlockPart::new(&b, u, &out.values, excluded, self.options.held_out.as_ref())
             });
+        // the input that drives this output directly, where each output has its own
+        let own_input = (train.inputs.len() == train.outputs.len() && train.inputs.len() > 1)
+            .then(|| names.iter().position(|n| *n == train.inputs[o].name))
+            .flatten();
         // the problem over the first `rows` samples, or over the blocks
         let problem_over = |st: &OutputStructure, plays: usize, part: Part| {
             let rows = match (part, &blocks) {
@@ -948,7 +952,8 @@ impl GreyBoxConfig {
                 self.options.held_out.clone(),
                 rows,
             )
-            .with_ridge(self.options.ridge);
+            .with_ridge(self.options.ridge)
+            .with_cross_ridge(self.options.cross_ridge, own_input);
             match (part, &blocks, excluded) {
                 (Part::Blocks, Some(b), _) => p.with_excluded(b.excluded.to_vec()),
                 (Part::First(rows), _, Some(m)) => p.with_excluded(m[..rows.min(m.len())].to_vec()),
@@ -2401,5 +2406,114 @@ mod tests {
             e.contains("reverses direction") && e.contains("nor does any other input"),
             "{e}"
         );
+    }
+
+    /// A 2-DoF record whose second input is the first plus a small wobble of its own (the
+    /// training record barely tells the paths apart) and one whose inputs move apart; each
+    /// output a play of its own input plus a tenth of the other input, with a deterministic
+    /// noise of about 0.05 % of the range.
+    fn together_and_apart() -> (IoRecord, IoRecord) {
+        let (ts, n) = (1e-3, 3000);
+        let sine = |a: f64, f: f64, ph: f64| -> Vec<f64> {
+            (0..n)
+                .map(|k| a * (2.0 * std::f64::consts::PI * f * k as f64 * ts + ph).sin())
+                .collect()
+        };
+        let add =
+            |a: &[f64], b: &[f64]| -> Vec<f64> { a.iter().zip(b).map(|(x, y)| x + y).collect() };
+        let make = |u1: Vec<f64>, u2: Vec<f64>| -> IoRecord {
+            let out = |own: &[f64], other: &[f64], r: f64, o: usize| -> Vec<f64> {
+                let mut z = 0.0;
+                own.iter()
+                    .zip(other)
+                    .enumerate()
+                    .map(|(k, (&v, &w))| {
+                        z = crate::effect::play::play_operator(v, r, z);
+                        let e = ((k as f64 * 12.9898 + o as f64).sin() * 43758.5453).fract();
+                        0.4 * v + 0.6 * z + 0.1 * w + 0.01 * e
+                    })
+                    .collect()
+            };
+            let (y1, y2) = (out(&u1, &u2, 3.0, 0), out(&u2, &u1, 2.0, 1));
+            let sig = |name: &str, values: Vec<f64>| Signal {
+                name: name.into(),
+                values,
+            };
+            IoRecord {
+                path: "together.csv".into(),
+                ts,
+                t0: 0.0,
+                time_name: "t".into(),
+                inputs: vec![sig("u1", u1), sig("u2", u2)],
+                outputs: vec![sig("y1", y1), sig("y2", y2)],
+            }
+        };
+        let base = add(&sine(10.0, 1.3, 0.0), &sine(4.0, 4.1, 0.5));
+        (
+            make(base.clone(), add(&base, &sine(0.5, 7.7, 1.0))),
+            make(base, add(&sine(9.0, 0.9, 1.0), &sine(3.0, 3.3, 0.2))),
+        )
+    }
+
+    /// The fit of `rec` with `hysteresis,coupling` (9 plays, no second stage) and a cross ridge.
+    fn coupled_fit(rec: &IoRecord, cross_ridge: f64) -> crate::graybox::FittedGreyBox {
+        let mut cfg = GreyBoxConfig::from_effect_list("hysteresis,coupling").unwrap();
+        cfg.options.plays = 9;
+        cfg.options.output_map = false;
+        cfg.options.cross_ridge = cross_ridge;
+        cfg.fit(rec).unwrap()
+    }
+
+    /// Where the inputs move together, the cross ridge takes the loop off the second output's
+    /// cross path (its plays' weights shrink by more than a quarter); where they move apart it
+    /// changes the fit by little. (The first output's own path takes a negative sign from the
+    /// ARX of both inputs there (`graybox::fit::path_signs`), and its loop stays on
+    /// the cross path whatever the ridge: signs from each input alone where the ARX does not
+    /// tell a gain from 0 fixed this record and lost on held-out zoo records,
+    /// `docs/benchmarks.md` 2026-12-06.)
+    #[test]
+    fn a_cross_ridge_shrinks_the_cross_paths_loops_where_the_inputs_move_together() {
+        let (together, apart) = together_and_apart();
+        let cross_plays = |f: &crate::graybox::FittedGreyBox| -> Vec<f64> {
+            let spec = serde_json::to_value(&f.plant.spec).unwrap();
+            let outputs = spec["outputs"].as_array().unwrap().clone();
+            outputs
+                .iter()
+                .enumerate()
+                .map(|(o, out)| {
+                    let own = format!("u{}", o + 1);
+                    out["paths"]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .filter(|p| p["input"] != own.as_str())
+                        .filter_map(|p| p["hysteresis"]["prandtl_ishlinskii"]["weights"].as_array())
+                        .flatten()
+                        .map(|w| w.as_f64().unwrap().abs())
+                        .sum()
+                })
+                .collect()
+        };
+        let (plain, ridged) = (coupled_fit(&together, 0.0), coupled_fit(&together, 1e-3));
+        let (a, b) = (cross_plays(&plain), cross_plays(&ridged));
+        assert!(a[1] > 0.0 && b[1] < 0.75 * a[1], "{b:?} against {a:?}");
+        let rmse = |f: &crate::graybox::FittedGreyBox| -> Vec<f64> {
+            let sim = f.simulate(&apart).unwrap();
+            sim.iter()
+                .zip(&apart.outputs)
+                .map(|(p, y)| {
+                    let s: f64 = p.iter().zip(&y.values).map(|(a, b)| (a - b).powi(2)).sum();
+                    (s / p.len() as f64).sqrt()
+                })
+                .collect()
+        };
+        let (plain, ridged) = (coupled_fit(&apart, 0.0), coupled_fit(&apart, 1e-3));
+        let (e_plain, e_ridged) = (rmse(&plain), rmse(&ridged));
+        for o in 0..2 {
+            assert!(
+                e_ridged[o] < 1.2 * e_plain[o] + 1e-3,
+                "{e_ridged:?} against {e_plain:?}"
+            );
+        }
     }
 }

@@ -126,6 +126,10 @@ pub(crate) struct OutputProblem<'a> {
     /// gain, but on a density's coefficients ([`OutputProblem::density_groups`]) the penalty
     /// of their second differences; 0 = none.
     ridge: f64,
+    /// Relative ridge on the cross paths' terms ([`OutputProblem::with_cross_ridge`]).
+    cross_ridge: f64,
+    /// The input that drives this output directly (the others' paths are cross paths).
+    own_input: Option<usize>,
     u: Vec<&'a [f64]>,
     pub input_names: Vec<String>,
     layout: Layout<'a>,
@@ -632,6 +636,8 @@ impl<'a> OutputProblem<'a> {
             held_out,
             excluded: None,
             ridge: 0.0,
+            cross_ridge: 0.0,
+            own_input: None,
             u,
             input_names,
             layout: Layout {
@@ -745,6 +751,19 @@ impl<'a> OutputProblem<'a> {
         self
     }
 
+    /// The same problem with a relative ridge `lambda` on the terms of its cross paths, the
+    /// paths whose input is not `own_input` (the output's own: none, no cross paths). Each
+    /// cross path's is scaled as if its input moved as much as the own one (by the ratio of
+    /// the gain columns' energies), so that `lambda` weighs the paths' gains alike. Where
+    /// the record cannot tell the paths apart (inputs that move together in it), the loop
+    /// goes to the own input's path; elsewhere the pull is of the order of `lambda`. The
+    /// cross paths keep their gains: a linear coupling is not shrunk.
+    pub fn with_cross_ridge(mut self, lambda: f64, own_input: Option<usize>) -> Self {
+        self.cross_ridge = lambda.max(0.0);
+        self.own_input = own_input;
+        self
+    }
+
     /// Which basis columns a ridge shrinks one by one: the terms' (not the gains, not the
     /// offset), but for those of a density ([`OutputProblem::density_groups`]).
     fn term_columns(&self) -> Vec<bool> {
@@ -756,6 +775,31 @@ impl<'a> OutputProblem<'a> {
         }
         for g in self.density_groups() {
             p[g].fill(false);
+        }
+        p
+    }
+
+    /// The relative ridge on each basis column from [`OutputProblem::with_cross_ridge`]: on
+    /// the terms of every path whose input is not the output's own, `cross_ridge` times the
+    /// ratio of the own path's gain column energy to the path's (`energy`: the columns'
+    /// squared norms), as if the cross input moved as much as the own one; 0 elsewhere.
+    fn cross_columns(&self, energy: &[f64]) -> Vec<f64> {
+        let mut p = vec![0.0; self.layout.n_cols];
+        let Some(own) = self.own_input.filter(|_| self.cross_ridge > 0.0) else {
+            return p;
+        };
+        let Some(own_gain) = self.layout.paths.iter().find(|path| path.input == own) else {
+            return p;
+        };
+        let own_energy = energy[own_gain.gain_col];
+        for path in self.layout.paths.iter().filter(|path| path.input != own) {
+            let ratio = own_energy / energy[path.gain_col];
+            let lambda = self.cross_ridge * ratio;
+            if lambda.is_finite() {
+                for t in &path.terms {
+                    p[t.cols.clone()].fill(lambda);
+                }
+            }
         }
         p
     }
@@ -1050,6 +1094,8 @@ impl<'a> OutputProblem<'a> {
             b_all += b;
         }
         let terms = self.term_columns();
+        let energy_all: Vec<f64> = (0..m).map(|i| g_all[(i, i)]).collect();
+        let cross = self.cross_columns(&energy_all);
         let groups = self.density_groups();
         let held = self.held_out.clone().unwrap_or(0..0);
         let errors: Vec<Option<Vec<f64>>> = ridges
@@ -1061,6 +1107,9 @@ impl<'a> OutputProblem<'a> {
                     Self::add_density_penalty(&groups, &mut g, lambda);
                     for i in (0..m).filter(|&i| terms[i]) {
                         g[(i, i)] *= 1.0 + lambda;
+                    }
+                    for i in 0..m {
+                        g[(i, i)] *= 1.0 + cross[i];
                     }
                     let coef = nnls_gram(&g, &(&b_all - bb), &cons).coef;
                     let skip = |k: &usize| {
@@ -1197,6 +1246,10 @@ impl<'a> OutputProblem<'a> {
         for (i, _) in penalised.iter().enumerate().filter(|(_, p)| **p) {
             g[(i, i)] += self.ridge * energy[i];
         }
+        let cross = self.cross_columns(&energy);
+        for i in 0..m {
+            g[(i, i)] += cross[i] * energy[i];
+        }
         let sol = nnls_gram(&g, &b, &cons);
         // the residual, the columns subtracted in order (from the columns held, or a second
         // pass over the record)
@@ -1232,6 +1285,9 @@ impl<'a> OutputProblem<'a> {
             .filter(|&i| penalised[i])
             .map(|i| self.ridge * energy[i] * sol.coef[i] * sol.coef[i])
             .sum::<f64>()
+            + (0..m)
+                .map(|i| cross[i] * energy[i] * sol.coef[i] * sol.coef[i])
+                .sum::<f64>()
             + Self::density_penalty(&density, sol.coef.as_slice());
         let cost = 0.5 * (r.iter().map(|v| v * v).sum::<f64>() + penalty);
         if !cost.is_finite() {

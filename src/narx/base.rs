@@ -521,6 +521,11 @@ fn run(
 /// both paths of each output from 187 samples).
 pub const BASE_SAMPLES_PER_PARAMETER: usize = 5;
 
+/// The base's relative ridge on its cross paths' hysteresis terms
+/// (`graybox::FitOptions::cross_ridge`): on a 2-DoF record whose inputs move together in the
+/// training part, the loop goes to each output's own input.
+pub const BASE_CROSS_RIDGE: f64 = 1e-3;
+
 /// Play operators per path of the base's hysteresis (fewer on records too short for them):
 /// half the grey-box fit's default, for half its time; on the development zoo the held-out
 /// error moved by less than the seeds move it.
@@ -583,6 +588,7 @@ fn list_config(train: &IoRecord, list: &str, n_fit: usize) -> Option<GreyBoxConf
     cfg.options.train_fraction = n_fit as f64 / train.len() as f64;
     cfg.options.samples_per_parameter = BASE_SAMPLES_PER_PARAMETER;
     cfg.options.plays = BASE_PLAYS;
+    cfg.options.cross_ridge = BASE_CROSS_RIDGE;
     // the base's lists and ridges are chosen by validation; the second stage is not in them
     cfg.options.output_map = false;
     // a long record's fitting part takes creep over the decades it spans, one or more (a
