@@ -1054,26 +1054,19 @@ fn two_modes_each(modes: &[ModePair<'_>], cols: &mut [&mut [f64]], states: &mut 
 /// coefficient: the first mode's Phi (row by row), Gamma and d, then the second's.
 #[cfg(target_arch = "x86_64")]
 fn lane_coefficients<const L: usize>(m: &[ModePair<'_>]) -> [[f64; L]; 14] {
-    let of = |(a, b): &ModePair<'_>| {
+    let mode = |x: &Discrete| {
         [
-            a.phi[(0, 0)],
-            a.phi[(0, 1)],
-            a.phi[(1, 0)],
-            a.phi[(1, 1)],
-            a.gamma[0],
-            a.gamma[1],
-            a.d,
-            b.phi[(0, 0)],
-            b.phi[(0, 1)],
-            b.phi[(1, 0)],
-            b.phi[(1, 1)],
-            b.gamma[0],
-            b.gamma[1],
-            b.d,
+            x.phi[(0, 0)],
+            x.phi[(0, 1)],
+            x.phi[(1, 0)],
+            x.phi[(1, 1)],
+            x.gamma[0],
+            x.gamma[1],
+            x.d,
         ]
     };
-    let each: [[f64; 14]; L] = std::array::from_fn(|l| of(&m[l]));
-    std::array::from_fn(|i| std::array::from_fn(|l| each[l][i]))
+    let each: [[[f64; 7]; 2]; L] = std::array::from_fn(|l| [mode(m[l].0), mode(m[l].1)]);
+    std::array::from_fn(|i| std::array::from_fn(|l| each[l][i / 7][i % 7]))
 }
 
 /// [`two_modes`] on four signals of one length, each with its own modes (`m[l]`), states `x`
