@@ -1005,7 +1005,8 @@ fn identify_warns_when_the_test_half_leaves_the_training_region() {
 }
 
 /// Prediction bands: calibrated on the training record's validation part, they hold about 95 %
-/// of a test half like the training half; they survive the model file; `predict` writes them as
+/// of a test half like the training half, never narrower than the validation errors' 95 %
+/// quantile; `identify` reports their coverage; they survive the model file; `predict` writes them as
 /// `y_lo`, `y_hi` around `y_hat`, and `compare --json` reports their coverage.
 #[test]
 fn prediction_bands_hold_a_test_half_like_the_training_half() {
@@ -1024,6 +1025,14 @@ fn prediction_bands_hold_a_test_half_like_the_training_half() {
     let c =
         hystbench::narx::band::coverage(&test.outputs[0].values, &p.values, h, p.start).unwrap();
     assert!(c >= 0.85, "coverage {c}");
+    // never narrower than the validation residuals' 95 % quantile (the floor)
+    assert!(band.floor > 0.0, "{band:?}");
+    assert!(h.iter().all(|v| *v >= band.floor));
+    // the evaluation (`identify`) reports the same coverage, and the width in test std
+    let e = &m.evaluate(&train, &test).unwrap()[0];
+    assert_eq!(e.band_coverage_test, Some(c));
+    let w = e.band_width_test.expect("a width");
+    assert!(w > 0.0 && w < 1.0, "{w}");
     // one-step predictions carry none
     assert!(m.predict(&test, Mode::OneStep).unwrap()[0]
         .half_width

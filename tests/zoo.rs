@@ -301,11 +301,15 @@ fn a_small_zoo_is_scored_against_the_linear_baseline() {
     assert_eq!(widest["outside"].as_f64().unwrap(), warned, "{widest}");
     let png = std::fs::read(z.join("score/r2.png")).unwrap();
     assert!(png.starts_with(b"\x89PNG"), "r2.png is a PNG");
-    // every output with a band reports its coverage
+    // every output with a band reports its coverage and its width
     for r in v["records"].as_array().unwrap() {
         for o in r["outputs"].as_array().unwrap() {
             if let Some(c) = o["coverage"].as_f64() {
                 assert!((0.0..=1.0).contains(&c), "{o}");
+                let w = o["band_width"]
+                    .as_f64()
+                    .expect("a width beside the coverage");
+                assert!(w.is_finite() && w > 0.0, "{o}");
             }
         }
     }

@@ -9,7 +9,9 @@ free-run test R^2 per output; a linear ARX baseline (4 lags, least squares on th
 error, run free over the test half from the training half's last samples); and the ceiling
 that the noise sets (the noiseless output scored against the measurement). Prints per class
 the records whose every output reaches 0.99 (0.999 for 1dof-long), the same for the ARX and
-the ceiling, the outputs worse than the ARX, the divergences and the time.
+the ceiling, the outputs worse than the ARX, the divergences, the time, and the 95 % band's
+coverage of the test half and its width (`identify --json`'s `band_coverage_test`,
+`band_width_test`).
 """
 
 import argparse
@@ -63,6 +65,17 @@ def arx(us, y, h, lags=4):
     return r2(y[h:], sim[h:])
 
 
+def band_cells(rs):
+    """The class's band columns: mean coverage, outputs covered >= 90 %, median half-width
+    (test output standard deviations)."""
+    cov = [o["coverage"] for r in rs for o in r["outputs"] if o.get("coverage") is not None]
+    wid = [o["band_width"] for r in rs for o in r["outputs"] if o.get("band_width") is not None]
+    if not cov:
+        return "- | - | - |"
+    return (f"{100 * np.mean(cov):.1f} % | {sum(c >= 0.9 for c in cov)} of {len(cov)} | "
+            f"{np.median(wid):.3f} |")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dir")
@@ -93,10 +106,13 @@ def main():
         if out.returncode != 0:
             print(f"{name}: identify failed: {out.stderr.strip()[:300]}", file=sys.stderr)
             res = {o: None for o in ys}
+            bands = {o: (None, None) for o in ys}
             models = {}
         else:
             v = json.loads(out.stdout)
             res = {o: v["outputs"][o].get("r2_fr_test") for o in ys}
+            bands = {o: (v["outputs"][o].get("band_coverage_test"),
+                         v["outputs"][o].get("band_width_test")) for o in ys}
             models = {c["name"]: c["effects"] + ":" + c["model"]
                       for c in (v.get("greybox") or {}).get("outputs", [])}
         row = {"index": m["index"], "class": m["class"], "seconds": secs, "outputs": []}
@@ -108,6 +124,8 @@ def main():
                 "arx_r2": arx([rec[u] for u in us], y, h),
                 "truth_r2": r2(y[h:], truth[o][h:]),
                 "model": models.get(o, "network"),
+                "coverage": bands[o][0],
+                "band_width": bands[o][1],
             })
         results.append(row)
         print(name, m["class"], " ".join(
@@ -120,8 +138,8 @@ def main():
             json.dump(results, fh, indent=1)
     print()
     print("| class | records | at the floor | ARX at it | true plant at it | worse than ARX | "
-          "diverged | mean s |")
-    print("|---|---|---|---|---|---|---|---|")
+          "diverged | mean s | mean band coverage | outputs covered >= 90 % | median half-width |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for cls in ["1dof-long", "1dof-short", "2dof-short"]:
         rs = [r for r in results if r["class"] == cls]
         if not rs:
@@ -136,7 +154,8 @@ def main():
         div = sum(1 for r in rs for o in r["outputs"] if o["r2"] is None)
         print(f"| {cls} (floor {floor}) | {len(rs)} | {sum(at(r, 'r2') for r in rs)} | "
               f"{sum(at(r, 'arx_r2') for r in rs)} | {sum(at(r, 'truth_r2') for r in rs)} | "
-              f"{worse} | {div} | {np.mean([r['seconds'] for r in rs]):.1f} |")
+              f"{worse} | {div} | {np.mean([r['seconds'] for r in rs]):.1f} | "
+              + band_cells(rs))
 
 
 if __name__ == "__main__":

@@ -255,6 +255,16 @@ fn run_with(
             );
         }
         for e in &eval {
+            if let (Some(c), Some(w)) = (e.band_coverage_test, e.band_width_test) {
+                println!(
+                    "{}: the 95 % band holds {:.1} % of the test samples (half-width {:.3} test standard deviations on average)",
+                    e.name,
+                    100.0 * c,
+                    w
+                );
+            }
+        }
+        for e in &eval {
             if let Some(d) = &e.base_departure_test {
                 println!("{} on the test record: {d}", e.name);
             }

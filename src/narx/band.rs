@@ -34,9 +34,9 @@ pub struct Band {
     pub rms: f64,
     /// Validation samples it was calibrated on.
     pub samples: usize,
-    /// The narrowest half-width (physical units, >= 0; 0: none): on a short record, the
-    /// `level` quantile of the cross-validated residuals over every sample
-    /// ([`Band::with_floor`]).
+    /// The narrowest half-width (physical units, >= 0; 0: none): the `level` quantile of the
+    /// magnitudes of the validation residuals, or on a short record of the cross-validated
+    /// residuals over every sample ([`Band::with_floor`]).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub floor: f64,
 }
@@ -81,7 +81,15 @@ impl Band {
     }
 
     /// The band never narrower than the `level` quantile of `residuals` (its
-    /// ceil((n + 1) level)-th smallest magnitude): a short record's band is calibrated on the
+    /// ceil((n + 1) level)-th smallest magnitude), the constant-width split-conformal band.
+    ///
+    /// On a longer record `residuals` are the validation residuals the band was calibrated on:
+    /// the normalised band then holds where the spread is small though the errors are not
+    /// (where the members agree on the same error, as on a record whose noise is larger than
+    /// their disagreement), since a normalised quantile calibrated where the spread is large
+    /// can leave q e below the noise.
+    ///
+    /// A short record's band is calibrated on the
     /// tail its network did not see, a quarter of a few hundred samples, whose errors can be
     /// smaller than those of the blocks where the model extrapolates; the cross-validated
     /// residuals of every sample (each predicted by a fit that did not see its block) set the
@@ -135,6 +143,24 @@ pub fn coverage(measured: &[f64], pred: &[f64], half: &[f64], from: usize) -> Op
     Some(inside as f64 / (n - from) as f64)
 }
 
+/// A band's mean half-width over `from..`, over the standard deviation of the measured samples
+/// there (`None` over fewer than two samples or a constant measurement).
+pub fn relative_width(measured: &[f64], half: &[f64], from: usize) -> Option<f64> {
+    let n = measured.len().min(half.len());
+    if from + 2 > n {
+        return None;
+    }
+    let m = n - from;
+    let mean = measured[from..n].iter().sum::<f64>() / m as f64;
+    let var = measured[from..n]
+        .iter()
+        .map(|y| (y - mean).powi(2))
+        .sum::<f64>()
+        / m as f64;
+    let w = half[from..n].iter().sum::<f64>() / m as f64;
+    (var > 0.0).then(|| w / var.sqrt())
+}
+
 /// The members' spread at each sample: their median absolute deviation from their median,
 /// times 1.4826 (the standard deviation for normal scatter; one stray member barely moves it).
 /// Zeros for one run.
@@ -169,6 +195,16 @@ pub fn spread(runs: &[&[f64]], len: usize) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The width is in standard deviations of the measurement over `from..`.
+    #[test]
+    fn the_relative_width_is_in_output_standard_deviations() {
+        let y = [9.0, 9.0, 1.0, -1.0, 1.0, -1.0];
+        let half = [5.0, 5.0, 2.0, 2.0, 2.0, 2.0];
+        assert_eq!(relative_width(&y, &half, 2), Some(2.0));
+        assert_eq!(relative_width(&y, &half, 5), None);
+        assert_eq!(relative_width(&[1.0; 4], &half, 0), None);
+    }
 
     #[test]
     fn gaussian_residuals_give_about_two_rms() {

@@ -881,8 +881,9 @@ fn preference(errs: &[Option<Vec<f64>>], challengers: &[bool], first: usize) -> 
 /// The band of an output on the grey-box alone, from its free run `sim` over the training
 /// record `y`: calibrated on the held-out samples `n_fit..` by its residuals there, normalised
 /// by its disagreement with the network's free run `network` (wider where the two part, as
-/// outside the training region; `Band` with the spread |g - network|); on a short record
-/// never narrower than its cross-validated errors over every block (`Band::with_floor`).
+/// outside the training region; `Band` with the spread |g - network|); never narrower than
+/// its held-out errors, on a short record its cross-validated errors over every block
+/// (`Band::with_floor`).
 fn base_band(
     y: &[f64],
     sim: &[f64],
@@ -904,7 +905,7 @@ fn base_band(
             let every: Vec<f64> = (0..n).map(|k| y[k] - sim[k]).collect();
             Some(b.with_floor(&every))
         }
-        b => b,
+        b => b.map(|b| b.with_floor(&r)),
     }
 }
 
@@ -1296,7 +1297,7 @@ impl NarxConfig {
                         .map(|t| (r.sim[o][t] + p[t] - a[t]).abs())
                         .collect();
                     if let Some(b) = Band::calibrate(&errs, &spread, BAND_LEVEL) {
-                        m.outputs[o].band = Some(b);
+                        m.outputs[o].band = Some(b.with_floor(&errs));
                         m.outputs[o].band_members.clear();
                         choices[o].network_alone = Some(alone);
                     }

@@ -845,7 +845,7 @@ impl NarxConfig {
                 spreads.push(run.spread[k] * d.scaling.std);
             }
         }
-        Band::calibrate(&residuals, &spreads, BAND_LEVEL)
+        Band::calibrate(&residuals, &spreads, BAND_LEVEL).map(|b| b.with_floor(&residuals))
     }
 }
 

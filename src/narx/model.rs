@@ -806,6 +806,14 @@ pub struct OutputEvaluation {
     /// test record ([`super::consensus`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base_departure_test: Option<super::consensus::Departure>,
+    /// Share of the test samples whose measurement lies inside the free run's 95 % band
+    /// (`None`: no band, or the free run diverged).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub band_coverage_test: Option<f64>,
+    /// The band's mean half-width over the test samples, in standard deviations of the
+    /// measured test output ([`super::band::relative_width`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub band_width_test: Option<f64>,
 }
 
 impl OutputEvaluation {
@@ -834,6 +842,12 @@ impl OutputEvaluation {
                 "base_departure".into(),
                 serde_json::to_value(d).unwrap_or_default(),
             );
+        }
+        if let Some(c) = self.band_coverage_test {
+            m.insert("band_coverage_test".into(), c.into());
+        }
+        if let Some(w) = self.band_width_test {
+            m.insert("band_width_test".into(), w.into());
         }
         serde_json::Value::Object(m)
     }
@@ -916,6 +930,10 @@ impl FittedNarx {
             let ytr = measured(train, &o.name);
             let yte = measured(test, &o.name);
             let fr_test = fr_te[i].scores(&yte);
+            let band = fr_te[i]
+                .half_width
+                .as_ref()
+                .filter(|_| fr_te[i].diverged_at.is_none());
             out.push(OutputEvaluation {
                 name: o.name.clone(),
                 r2_osa_train: osa_tr[i].scores(&ytr).and_then(|s| s.r2),
@@ -928,6 +946,10 @@ impl FittedNarx {
                 diverged_at_test: fr_te[i].diverged_at,
                 diverged_members_test: fr_te[i].diverged_members.clone(),
                 base_departure_test: fr_te[i].base_departure.clone(),
+                band_coverage_test: band
+                    .and_then(|h| super::band::coverage(&yte, &fr_te[i].values, h, fr_te[i].start)),
+                band_width_test: band
+                    .and_then(|h| super::band::relative_width(&yte, h, fr_te[i].start)),
             });
         }
         Ok(out)

@@ -6,7 +6,7 @@
 use super::{median, noiseless, share, Class, IndexEntry, ZooError, ZooIndex};
 use crate::data::{read_csv, IoRecord};
 use crate::narx::arx::fit_arx;
-use crate::narx::band::coverage;
+use crate::narx::band::{coverage, relative_width};
 use crate::narx::base::BaseUse;
 use crate::narx::NarxConfig;
 use rayon::prelude::*;
@@ -37,6 +37,10 @@ pub struct OutputScore {
     /// Share of the test samples whose measurement lies inside the identifier's 95 % band
     /// (`None`: no band, or the free run diverged).
     pub coverage: Option<f64>,
+    /// The band's mean half-width over the test samples, over the test output's standard
+    /// deviation (`None` as for `coverage`): a coverage is only as good as the band is narrow.
+    #[serde(default)]
+    pub band_width: Option<f64>,
     /// What the identifier made of this output ([`crate::narx::base::BaseUse`]): the network,
     /// the grey-box model alone, or the grey-box model under a network on its residual.
     pub model: BaseUse,
@@ -119,6 +123,10 @@ pub struct ClassSummary {
     /// (over outputs with a band).
     pub covered_090: usize,
     pub mean_coverage: Option<f64>,
+    /// The median over the outputs of the band's mean half-width over the test output's
+    /// standard deviation.
+    #[serde(default)]
+    pub median_band_width: Option<f64>,
     /// Records whose test half leaves the training region on at least [`OUTSIDE_NOTED`] of its
     /// samples ([`RecordScore::outside`]), and of the records below the floor, those that do.
     pub leaving: usize,
@@ -201,6 +209,11 @@ fn score_member(dir: &Path, e: &IndexEntry) -> Result<RecordScore, ZooError> {
                     .as_ref()
                     .filter(|_| fr.diverged_at.is_none())
                     .and_then(|h| coverage(y, &fr.values, h, fr.start)),
+                band_width: fr
+                    .half_width
+                    .as_ref()
+                    .filter(|_| fr.diverged_at.is_none())
+                    .and_then(|h| relative_width(y, h, fr.start)),
                 model: model.base.as_ref().map_or(BaseUse::Network, |b| b.uses(o)),
             }
         })
@@ -371,6 +384,11 @@ fn summarise(class: Class, records: &[RecordScore]) -> Option<ClassSummary> {
             let c: Vec<f64> = outs.iter().filter_map(|o| o.coverage).collect();
             (!c.is_empty()).then(|| c.iter().sum::<f64>() / c.len() as f64)
         },
+        median_band_width: {
+            let mut w: Vec<f64> = outs.iter().filter_map(|o| o.band_width).collect();
+            w.sort_by(f64::total_cmp);
+            quantile(&w, 0.5)
+        },
         leaving: mine.iter().filter(|r| r.outside >= OUTSIDE_NOTED).count(),
         below_floor_leaving: mine
             .iter()
@@ -425,13 +443,13 @@ impl ZooScore {
 
     /// `results.csv`: one row per output of each record.
     pub fn to_csv(&self) -> String {
-        let mut s = String::from("index,class,samples,sampling_period_s,output,r2_test,diverged,r2_train,arx_r2_test,arx_diverged,worse_than_arx,truth_r2_test,r2_clean,arx_r2_clean,band_coverage,model,outside_share,seconds\n");
+        let mut s = String::from("index,class,samples,sampling_period_s,output,r2_test,diverged,r2_train,arx_r2_test,arx_diverged,worse_than_arx,truth_r2_test,r2_clean,arx_r2_clean,band_coverage,band_width,model,outside_share,seconds\n");
         let opt = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
         for r in &self.records {
             for o in &r.outputs {
                 let _ = writeln!(
                     s,
-                    "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                    "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                     r.index,
                     r.class,
                     r.samples,
@@ -447,6 +465,7 @@ impl ZooScore {
                     opt(o.r2_clean),
                     opt(o.arx_r2_clean),
                     opt(o.coverage),
+                    opt(o.band_width),
                     o.model.as_str(),
                     r.outside,
                     r.seconds
@@ -542,16 +561,18 @@ impl ZooScore {
                 share(c.arx_clean.at_least_0999, c.outputs),
             );
         }
-        s += "\nPrediction bands (95 %, calibrated on each training record's validation part): the share of test samples whose measurement lies inside.\n\n| class | outputs | mean coverage | outputs covered >= 90 % |\n|---|---|---|---|\n";
+        s += "\nPrediction bands (95 %, calibrated on each training record's validation part): the share of test samples whose measurement lies inside, and the median over the outputs of the band's mean half-width in test output standard deviations.\n\n| class | outputs | mean coverage | outputs covered >= 90 % | median half-width |\n|---|---|---|---|---|\n";
         for c in &self.classes {
             let _ = writeln!(
                 s,
-                "| {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} |",
                 c.class,
                 c.outputs,
                 c.mean_coverage
                     .map_or("-".into(), |v| format!("{:.1} %", 100.0 * v)),
                 share(c.covered_090, c.outputs),
+                c.median_band_width
+                    .map_or("-".into(), |v| format!("{v:.3}")),
             );
         }
         s += "\nWhat the identifier chose per output (on the training record's validation part): the network, the grey-box model alone, or the grey-box model under a network on its residual.\n\n| class | outputs | network | grey-box | grey-box + network |\n|---|---|---|---|---|\n";
@@ -596,6 +617,7 @@ mod tests {
                 r2_clean: Some(r2),
                 arx_r2_clean: Some(0.5),
                 coverage: None,
+                band_width: None,
                 model: BaseUse::Base,
             }],
             outside,
