@@ -532,19 +532,35 @@ fn the_library_draws_a_loop_without_the_command_line() {
         .with_prediction(0, u)
         .unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let p = dir.path().join("loop.svg");
-    loop_figure(
-        std::slice::from_ref(&rec),
-        &LoopOptions::default(),
-        &p,
-        None,
-        false,
-    )
-    .unwrap();
-    let svg = std::fs::read_to_string(&p).unwrap();
+    // the figure of `r` as SVG text, through a file
+    let draw = |r: &PlotRecord, name: &str| {
+        let p = dir.path().join(name);
+        loop_figure(
+            std::slice::from_ref(r),
+            &LoopOptions::default(),
+            &p,
+            None,
+            false,
+        )
+        .unwrap();
+        std::fs::read_to_string(&p).unwrap()
+    };
+    let svg = draw(&rec, "loop.svg");
     assert!(
         svg.contains("u [N]") && svg.contains("y [m]") && svg.contains("model"),
         "axis labels with units"
+    );
+    assert!(
+        !svg.contains("prediction band"),
+        "no band given, none drawn"
+    );
+    assert!(!svg.contains("\n1.5\n"), "the loop alone stays within 1.04");
+    // a band is drawn under the model's loop, and the axis holds its edges
+    let svg = draw(&rec.clone().with_band(0, vec![0.5; n]).unwrap(), "band.svg");
+    assert!(svg.contains("prediction band (95 %)"), "the band's legend");
+    assert!(
+        svg.contains("\n1.5\n"),
+        "the y axis reaches the band's upper edge"
     );
     // in memory, for commands that stage several files in one OutputGuard
     let options = LoopOptions::default();

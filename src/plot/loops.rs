@@ -5,6 +5,9 @@
 //! outputs, columns inputs). Several records are overlaid in palette colours; a model's
 //! prediction (`<output>_hat`) is drawn over the measurement. The measurement can be coloured by
 //! time or by cycle (input reversals / 2), with a colour bar, so minor loops can be told apart.
+//! A prediction band (`<output>_lo`, `<output>_hi`) is drawn under the model's loop as a
+//! vertical stroke at each sample, from the band's lower edge to its upper, in the model's
+//! colour: the strokes shade the region the band says the loop lies in.
 //!
 //! Long records are decimated with [`decimate`](super::decimate::decimate): turning points and
 //! per-bucket extremes are always kept.
@@ -143,6 +146,10 @@ impl<'a> LoopFigure<'a> {
 /// Colour levels used for the time gradient.
 const TIME_LEVELS: usize = 96;
 
+/// The band's vertical strokes per record at most (turning points and extremes kept): enough
+/// to shade the loop's band, few enough to draw fast.
+const BAND_STROKES: usize = 4000;
+
 impl Figure for LoopFigure<'_> {
     fn default_size(&self) -> (u32, u32) {
         let bar = if self.colour() == LoopColour::Series {
@@ -200,6 +207,11 @@ impl LoopFigure<'_> {
             yr = axes::union(yr, axes::padded_range(&r.io.outputs[i].values, 0.04));
             if let Some(p) = &r.predicted[i] {
                 yr = axes::union(yr, axes::padded_range(p, 0.04));
+                if let Some(h) = &r.band[i] {
+                    let edges: Vec<f64> =
+                        p.iter().zip(h).flat_map(|(c, h)| [c - h, c + h]).collect();
+                    yr = axes::union(yr, axes::padded_range(&edges, 0.04));
+                }
             }
         }
         (xr, yr)
@@ -219,6 +231,27 @@ impl LoopFigure<'_> {
             ""
         };
         format!("{kind}{} → {}", io.inputs[j].name, io.outputs[i].name)
+    }
+
+    /// Each record's model colour (`None`: no prediction), in the order the series are drawn.
+    fn model_colours(&self, colour: LoopColour) -> Vec<Option<RGBColor>> {
+        let mut n_series = 0;
+        self.records
+            .iter()
+            .enumerate()
+            .map(|(ri, r)| {
+                // the measurement takes a colour first
+                n_series += 1;
+                r.has_predictions().then(|| {
+                    if colour == LoopColour::Series {
+                        n_series += 1;
+                        style::series_colour(n_series - 1)
+                    } else {
+                        style::PALETTE[1 + ri % (style::PALETTE.len() - 1)]
+                    }
+                })
+            })
+            .collect()
     }
 
     fn draw_panel<DB: DrawingBackend>(
@@ -242,6 +275,29 @@ impl LoopFigure<'_> {
         )?;
         let mut n_series = 0;
         let mut labelled = 0;
+        let model_colours = self.model_colours(colour);
+        // the bands first, under every line
+        for (r, c) in self.records.iter().zip(&model_colours) {
+            let (Some(p), Some(h), Some(c)) = (&r.predicted[i], &r.band[i], c) else {
+                continue;
+            };
+            let u = &r.io.inputs[j].values;
+            let idx = decimate(&[u, p], 0..r.len(), BAND_STROKES);
+            let shade = c.mix(0.25);
+            chart
+                .draw_series(idx.iter().map(|&k| {
+                    PathElement::new(
+                        vec![(u[k], p[k] - h[k]), (u[k], p[k] + h[k])],
+                        shade.stroke_width(style::px(2)),
+                    )
+                }))
+                .map_err(render_err)?
+                .label("prediction band (95 %)")
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 4), (x + 16, y + 4)], shade.filled())
+                });
+            labelled += 1;
+        }
         for (ri, r) in self.records.iter().enumerate() {
             let u = &r.io.inputs[j].values;
             let y = &r.io.outputs[i].values;
@@ -284,14 +340,11 @@ impl LoopFigure<'_> {
                     .legend(legend_line(c));
                 labelled += 1;
             }
-            if let Some(p) = pred {
-                let c = if colour == LoopColour::Series {
-                    let c = style::series_colour(n_series);
-                    n_series += 1;
-                    c
-                } else {
-                    style::PALETTE[1 + ri % (style::PALETTE.len() - 1)]
-                };
+            // (a record's model keeps its colour in every panel, predicted there or not)
+            if colour == LoopColour::Series && model_colours[ri].is_some() {
+                n_series += 1;
+            }
+            if let (Some(p), Some(c)) = (pred, model_colours[ri]) {
                 let label = if self.records.len() > 1 {
                     format!("{} model", r.label)
                 } else {
