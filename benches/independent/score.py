@@ -72,8 +72,8 @@ def band_cells(rs):
     wid = [o["band_width"] for r in rs for o in r["outputs"] if o.get("band_width") is not None]
     if not cov:
         return "- | - | - |"
-    return (f"{100 * np.mean(cov):.1f} % | {sum(c >= 0.9 for c in cov)} of {len(cov)} | "
-            f"{np.median(wid):.3f} |")
+    width = f"{np.median(wid):.3f}" if wid else "-"
+    return f"{100 * np.mean(cov):.1f} % | {sum(c >= 0.9 for c in cov)} of {len(cov)} | {width} |"
 
 
 def main():

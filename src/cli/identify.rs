@@ -255,12 +255,14 @@ fn run_with(
             );
         }
         for e in &eval {
-            if let (Some(c), Some(w)) = (e.band_coverage_test, e.band_width_test) {
+            if let Some(c) = e.band_coverage_test {
                 println!(
-                    "{}: the 95 % band holds {:.1} % of the test samples (half-width {:.3} test standard deviations on average)",
+                    "{}: the 95 % band holds {:.1} % of the test samples{}",
                     e.name,
                     100.0 * c,
-                    w
+                    e.band_width_test.map_or(String::new(), |w| format!(
+                        " (half-width {w:.3} test standard deviations on average)"
+                    ))
                 );
             }
         }

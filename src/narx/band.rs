@@ -7,7 +7,10 @@
 //! deviation; zero for one network) and the validation RMS error e, the normalised scores |r_t| / (s_t + e) give
 //! their `level` quantile q (the ceil((n + 1) level)-th smallest of n). On any record the band
 //! is then prediction +- q (s_t + e): as wide as the validation errors where the members agree,
-//! wider where they part (typically outside the training region).
+//! wider where they part (typically outside the training region), and never narrower than the
+//! `level` quantile of the validation residuals' magnitudes ([`Band::with_floor`]; on a short
+//! record, of its cross-validated residuals; on a record with no validation part at all, of the
+//! in-sample residuals).
 //!
 //! The validation part comes after the fitting part in time, so the band carries the model's
 //! drift as well as the noise; its free-run residuals are correlated, so the coverage is a

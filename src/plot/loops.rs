@@ -5,9 +5,10 @@
 //! outputs, columns inputs). Several records are overlaid in palette colours; a model's
 //! prediction (`<output>_hat`) is drawn over the measurement. The measurement can be coloured by
 //! time or by cycle (input reversals / 2), with a colour bar, so minor loops can be told apart.
-//! A prediction band (`<output>_lo`, `<output>_hi`) is drawn under the model's loop as a
-//! vertical stroke at each sample, from the band's lower edge to its upper, in the model's
-//! colour: the strokes shade the region the band says the loop lies in.
+//! A prediction band (`<output>_lo`, `<output>_hi`) is drawn under the model's loop as vertical
+//! strokes (at up to [`BAND_STROKES`] samples, turning points kept), from the band's lower edge
+//! to its upper, in the model's colour: the strokes shade the region the band says the loop
+//! lies in.
 //!
 //! Long records are decimated with [`decimate`](super::decimate::decimate): turning points and
 //! per-bucket extremes are always kept.
@@ -277,6 +278,7 @@ impl LoopFigure<'_> {
         let mut labelled = 0;
         let model_colours = self.model_colours(colour);
         // the bands first, under every line
+        let several = self.records.len() > 1;
         for (r, c) in self.records.iter().zip(&model_colours) {
             let (Some(p), Some(h), Some(c)) = (&r.predicted[i], &r.band[i], c) else {
                 continue;
@@ -292,7 +294,11 @@ impl LoopFigure<'_> {
                     )
                 }))
                 .map_err(render_err)?
-                .label("prediction band (95 %)")
+                .label(if several {
+                    format!("{} band (95 %)", r.label)
+                } else {
+                    "prediction band (95 %)".to_string()
+                })
                 .legend(move |(x, y)| {
                     Rectangle::new([(x, y - 4), (x + 16, y + 4)], shade.filled())
                 });
