@@ -153,15 +153,8 @@ pub fn relative_width(measured: &[f64], half: &[f64], from: usize) -> Option<f64
     if from + 2 > n {
         return None;
     }
-    let m = n - from;
-    let mean = measured[from..n].iter().sum::<f64>() / m as f64;
-    let var = measured[from..n]
-        .iter()
-        .map(|y| (y - mean).powi(2))
-        .sum::<f64>()
-        / m as f64;
-    let w = half[from..n].iter().sum::<f64>() / m as f64;
-    (var > 0.0).then(|| w / var.sqrt())
+    let std = crate::metrics::std_dev(&measured[from..n]);
+    (std > 0.0).then(|| crate::metrics::mean(&half[from..n]) / std)
 }
 
 /// The members' spread at each sample: their median absolute deviation from their median,

@@ -220,6 +220,23 @@ impl OutputPrediction {
         }
         Some(scores(&measured[self.start..], &self.values[self.start..]))
     }
+
+    /// The band against the measured signal over `start..`: the share of samples inside it
+    /// ([`super::band::coverage`]) and its mean half-width in standard deviations of the
+    /// measurement ([`super::band::relative_width`]); `None` without a band or if diverged.
+    pub fn band_scores(&self, measured: &[f64]) -> (Option<f64>, Option<f64>) {
+        match self
+            .half_width
+            .as_ref()
+            .filter(|_| self.diverged_at.is_none())
+        {
+            Some(h) => (
+                super::band::coverage(measured, &self.values, h, self.start),
+                super::band::relative_width(measured, h, self.start),
+            ),
+            None => (None, None),
+        }
+    }
 }
 
 /// The input columns of a record as slices.
@@ -930,10 +947,7 @@ impl FittedNarx {
             let ytr = measured(train, &o.name);
             let yte = measured(test, &o.name);
             let fr_test = fr_te[i].scores(&yte);
-            let band = fr_te[i]
-                .half_width
-                .as_ref()
-                .filter(|_| fr_te[i].diverged_at.is_none());
+            let (band_coverage_test, band_width_test) = fr_te[i].band_scores(&yte);
             out.push(OutputEvaluation {
                 name: o.name.clone(),
                 r2_osa_train: osa_tr[i].scores(&ytr).and_then(|s| s.r2),
@@ -946,10 +960,8 @@ impl FittedNarx {
                 diverged_at_test: fr_te[i].diverged_at,
                 diverged_members_test: fr_te[i].diverged_members.clone(),
                 base_departure_test: fr_te[i].base_departure.clone(),
-                band_coverage_test: band
-                    .and_then(|h| super::band::coverage(&yte, &fr_te[i].values, h, fr_te[i].start)),
-                band_width_test: band
-                    .and_then(|h| super::band::relative_width(&yte, h, fr_te[i].start)),
+                band_coverage_test,
+                band_width_test,
             });
         }
         Ok(out)

@@ -234,23 +234,29 @@ impl LoopFigure<'_> {
         format!("{kind}{} → {}", io.inputs[j].name, io.outputs[i].name)
     }
 
-    /// Each record's model colour (`None`: no prediction), in the order the series are drawn.
-    fn model_colours(&self, colour: LoopColour) -> Vec<Option<RGBColor>> {
+    /// Each record's measurement colour and model colour (`None`: no prediction), the series
+    /// numbered in the order they are drawn; a record's model keeps its colour in every
+    /// panel, predicted there or not. (The first record's measurement is drawn along viridis
+    /// unless `colour` is `Series`; it still takes its number.)
+    fn series_colours(&self, colour: LoopColour) -> Vec<(RGBColor, Option<RGBColor>)> {
         let mut n_series = 0;
+        let mut next = || {
+            n_series += 1;
+            style::series_colour(n_series - 1)
+        };
         self.records
             .iter()
             .enumerate()
             .map(|(ri, r)| {
-                // the measurement takes a colour first
-                n_series += 1;
-                r.has_predictions().then(|| {
+                let measured = next();
+                let model = r.has_predictions().then(|| {
                     if colour == LoopColour::Series {
-                        n_series += 1;
-                        style::series_colour(n_series - 1)
+                        next()
                     } else {
                         style::PALETTE[1 + ri % (style::PALETTE.len() - 1)]
                     }
-                })
+                });
+                (measured, model)
             })
             .collect()
     }
@@ -274,12 +280,11 @@ impl LoopFigure<'_> {
             &rec0.quantity(uname).label(),
             &rec0.quantity(yname).label(),
         )?;
-        let mut n_series = 0;
         let mut labelled = 0;
-        let model_colours = self.model_colours(colour);
+        let colours = self.series_colours(colour);
         // the bands first, under every line
         let several = self.records.len() > 1;
-        for (r, c) in self.records.iter().zip(&model_colours) {
+        for (r, (_, c)) in self.records.iter().zip(&colours) {
             let (Some(p), Some(h), Some(c)) = (&r.predicted[i], &r.band[i], c) else {
                 continue;
             };
@@ -304,7 +309,7 @@ impl LoopFigure<'_> {
                 });
             labelled += 1;
         }
-        for (ri, r) in self.records.iter().enumerate() {
+        for (ri, (r, &(measured, model))) in self.records.iter().zip(&colours).enumerate() {
             let u = &r.io.inputs[j].values;
             let y = &r.io.outputs[i].values;
             let pred = r.predicted[i].as_deref();
@@ -332,25 +337,18 @@ impl LoopFigure<'_> {
                     .label(label)
                     .legend(legend_line(viridis(0.5)));
                 labelled += 1;
-                n_series += 1;
             } else {
-                let c = style::series_colour(n_series);
-                n_series += 1;
                 chart
                     .draw_series(axes::path_elements(
                         idx.iter().map(|&k| (u[k], y[k])).collect::<Vec<_>>(),
-                        c.stroke_width(style::px(style::LINE_WIDTH)),
+                        measured.stroke_width(style::px(style::LINE_WIDTH)),
                     ))
                     .map_err(render_err)?
                     .label(label)
-                    .legend(legend_line(c));
+                    .legend(legend_line(measured));
                 labelled += 1;
             }
-            // (a record's model keeps its colour in every panel, predicted there or not)
-            if colour == LoopColour::Series && model_colours[ri].is_some() {
-                n_series += 1;
-            }
-            if let (Some(p), Some(c)) = (pred, model_colours[ri]) {
+            if let (Some(p), Some(c)) = (pred, model) {
                 let label = if self.records.len() > 1 {
                     format!("{} model", r.label)
                 } else {

@@ -6,7 +6,6 @@
 use super::{median, noiseless, share, Class, IndexEntry, ZooError, ZooIndex};
 use crate::data::{read_csv, IoRecord};
 use crate::narx::arx::fit_arx;
-use crate::narx::band::{coverage, relative_width};
 use crate::narx::base::BaseUse;
 use crate::narx::NarxConfig;
 use rayon::prelude::*;
@@ -194,6 +193,7 @@ fn score_member(dir: &Path, e: &IndexEntry) -> Result<RecordScore, ZooError> {
                 &runs[o],
                 &truth[o][h..],
             );
+            let (coverage, band_width) = fr.band_scores(y);
             OutputScore {
                 name: fr.name.clone(),
                 r2: r2(fr, y),
@@ -204,16 +204,8 @@ fn score_member(dir: &Path, e: &IndexEntry) -> Result<RecordScore, ZooError> {
                 truth_r2: crate::metrics::r2(y, clean),
                 r2_clean: clean_r2(clean, &fr.values, fr.start, fr.diverged_at),
                 arx_r2_clean: clean_r2(clean, &run.values, run.start, run.diverged_at),
-                coverage: fr
-                    .half_width
-                    .as_ref()
-                    .filter(|_| fr.diverged_at.is_none())
-                    .and_then(|h| coverage(y, &fr.values, h, fr.start)),
-                band_width: fr
-                    .half_width
-                    .as_ref()
-                    .filter(|_| fr.diverged_at.is_none())
-                    .and_then(|h| relative_width(y, h, fr.start)),
+                coverage,
+                band_width,
                 model: model.base.as_ref().map_or(BaseUse::Network, |b| b.uses(o)),
             }
         })
