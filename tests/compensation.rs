@@ -114,6 +114,7 @@ fn the_true_plant_as_the_model_flattens_every_shipped_loop() {
         "bouc_wen_piezo.json",
         "prandtl_ishlinskii_piezo.json",
         "prandtl_ishlinskii_asymmetric.json",
+        "prandtl_ishlinskii_generalised.json",
         "creep_piezo.json",
         "hidden_creep_piezo.json",
     ] {

@@ -60,6 +60,7 @@ fn prandtl_ishlinskii_matches_reference_to_1e9() {
         input_map: None,
         dead_zones: None,
         envelope_split: None,
+        envelopes: None,
     }
     .check()
     .unwrap();

@@ -5,7 +5,7 @@ use hystbench::effect::bouc_wen::BoucWenSpec;
 use hystbench::effect::creep::CreepSpec;
 use hystbench::effect::dynamics::DynamicsSpec;
 use hystbench::effect::hysteresis::{Hysteresis, HysteresisSpec};
-use hystbench::effect::prandtl_ishlinskii::PrandtlIshlinskiiSpec;
+use hystbench::effect::prandtl_ishlinskii::{EnvelopesSpec, PrandtlIshlinskiiSpec, TanhEnvelope};
 use hystbench::effect::Operator;
 use hystbench::plant::{Plant, PlantSpec};
 use std::path::Path;
@@ -24,6 +24,10 @@ fn piezo_bw() -> Hysteresis {
 }
 
 fn piezo_pi() -> Hysteresis {
+    piezo_pi_spec().check().unwrap()
+}
+
+fn piezo_pi_spec() -> HysteresisSpec {
     HysteresisSpec::PrandtlIshlinskii(PrandtlIshlinskiiSpec {
         linear_weight: 0.6,
         thresholds: (1..10).map(|i| 4.0 * i as f64).collect(),
@@ -32,9 +36,21 @@ fn piezo_pi() -> Hysteresis {
         input_map: None,
         dead_zones: None,
         envelope_split: None,
+        envelopes: None,
     })
-    .check()
-    .unwrap()
+}
+
+/// The shipped generalised plant's operator (`plants/prandtl_ishlinskii_generalised.json`):
+/// the classical one on tanh envelopes, ascending and descending apart.
+fn piezo_gpi() -> Hysteresis {
+    let HysteresisSpec::PrandtlIshlinskii(mut pi) = piezo_pi_spec() else {
+        unreachable!()
+    };
+    pi.envelopes = Some(Box::new(EnvelopesSpec {
+        ascending: TanhEnvelope::unit_slope(45.0, 0.3),
+        descending: TanhEnvelope::unit_slope(52.0, -0.2),
+    }));
+    HysteresisSpec::PrandtlIshlinskii(pi).check().unwrap()
 }
 
 /// An input path with nested reversals.
@@ -61,7 +77,7 @@ fn slower(u: &[f64], m: usize) -> Vec<f64> {
 
 #[test]
 fn hysteresis_is_rate_independent() {
-    for h in [piezo_bw(), piezo_pi()] {
+    for h in [piezo_bw(), piezo_pi(), piezo_gpi()] {
         let u = path(2000);
         let fast = h.operator().apply(&u);
         let slow = h.operator().apply(&slower(&u, 7));
@@ -117,7 +133,7 @@ fn signed_area(u: &[f64], y: &[f64]) -> f64 {
 #[test]
 fn piezo_loops_turn_counter_clockwise() {
     // y = d u - h lags the voltage: rising branch below, falling branch above.
-    for h in [piezo_bw(), piezo_pi()] {
+    for h in [piezo_bw(), piezo_pi(), piezo_gpi()] {
         let n = 1000;
         let u: Vec<f64> = (0..3 * n)
             .map(|k| 30.0 * (2.0 * std::f64::consts::PI * k as f64 / n as f64).sin())

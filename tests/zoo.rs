@@ -533,6 +533,58 @@ fn extra_dynamics_draws_a_second_mode_and_a_hold() {
     assert!(on_top + new > 0, "no second mode drawn on 8 members");
 }
 
+/// `--extra hysteresis` puts tanh envelopes (Al Janaideh's generalised plays) on Prandtl-Ishlinskii
+/// paths in place of their dead zones, leaving Bouc-Wen loops and gains and the rest of every
+/// member as the default zoo's.
+#[test]
+fn extra_hysteresis_draws_generalised_plays_on_prandtl_ishlinskii_paths() {
+    use hystbench::effect::hysteresis::HysteresisSpec;
+    use hystbench::plant::PlantSpec;
+    let dir = tempfile::tempdir().unwrap();
+    let (out, index) = extra_zoo(dir.path(), "hysteresis");
+    let mut generalised = 0;
+    for e in &index.members {
+        let p = PlantSpec::read(&out.join(&e.plant)).unwrap();
+        let mut default = zoo::member(3, e.index).plant;
+        for (o, d) in p.outputs.iter().zip(default.outputs.iter_mut()) {
+            for (path, dp) in o.paths.iter().zip(d.paths.iter_mut()) {
+                for (x, dx) in path.effects.iter().zip(dp.effects.iter_mut()) {
+                    let (Some(HysteresisSpec::PrandtlIshlinskii(now)), Some(before)) = (
+                        x.as_any().downcast_ref::<HysteresisSpec>(),
+                        dx.as_any().downcast_ref::<HysteresisSpec>(),
+                    ) else {
+                        continue;
+                    };
+                    let Some(env) = &now.envelopes else {
+                        continue;
+                    };
+                    let HysteresisSpec::PrandtlIshlinskii(b) = before else {
+                        panic!("envelopes drawn on {before:?}");
+                    };
+                    assert_eq!(
+                        (
+                            &now.thresholds,
+                            &now.weights,
+                            now.linear_weight,
+                            &now.dead_zones
+                        ),
+                        (&b.thresholds, &b.weights, b.linear_weight, &None)
+                    );
+                    for g in [env.ascending, env.descending] {
+                        assert!(g.at(0.0).abs() < 1e-9, "{g:?}");
+                        let slope = (g.at(1e-6) - g.at(-1e-6)) / 2e-6;
+                        assert!((slope - 1.0).abs() < 1e-6, "{g:?}");
+                    }
+                    generalised += 1;
+                    *dx = x.clone();
+                }
+            }
+        }
+        assert_eq!(p.outputs, default.outputs, "member {}", e.index);
+    }
+    assert!(generalised > 0, "no generalised plays drawn on 8 members");
+}
+
 /// A network chosen over its grey-box base whose ensemble mostly diverges on the test record
 /// (inputs in combinations the training half never visited) gives way to the base: the free
 /// run is scored, not left to the few members that held (zoo seed 37 member 45 with

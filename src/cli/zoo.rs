@@ -28,9 +28,10 @@ pub struct Args {
     #[arg(long, value_delimiter = ',')]
     pub classes: Vec<zoo::Class>,
     /// Effects drawn on top of the default zoo, sized by each output's range (comma-separated:
-    /// drift, saturation; dynamics: a second mode and a hold on an output's mode); each output
-    /// gets each with probability 1/2, from a stream of its own, so that the rest of every
-    /// member is the default zoo's.
+    /// drift, saturation; dynamics: a second mode and a hold on an output's mode; hysteresis:
+    /// Al Janaideh's tanh envelopes on its Prandtl-Ishlinskii paths); each output gets each
+    /// with probability 1/2, from a stream of its own, so that the rest of every member is the
+    /// default zoo's.
     #[arg(long, value_delimiter = ',')]
     pub extra: Vec<hystbench::effect::EffectName>,
     /// Replace an existing zoo folder.

@@ -15,8 +15,8 @@ use super::fitting::{
 };
 use super::play::{play_operator, Play};
 use super::prandtl_ishlinskii::{
-    dead_zone, envelope_split, DeadZoneSpec, PrandtlIshlinskii, PrandtlIshlinskiiOp,
-    PrandtlIshlinskiiSpec,
+    dead_zone, envelope_split, DeadZoneSpec, EnvelopesSpec, PrandtlIshlinskii, PrandtlIshlinskiiOp,
+    PrandtlIshlinskiiSpec, TanhEnvelope,
 };
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
 use super::{finite, Effect, EffectError, EffectName, Operator, Slot};
@@ -81,6 +81,7 @@ impl HysteresisSpec {
                 let neg = |w: &[f64]| w.iter().map(|w| -w).collect();
                 HysteresisSpec::PrandtlIshlinskii(PrandtlIshlinskiiSpec {
                     envelope_split: s.envelope_split,
+                    envelopes: s.envelopes.clone(),
                     linear_weight: -s.linear_weight,
                     thresholds: s.thresholds.clone(),
                     weights: neg(&s.weights),
@@ -311,6 +312,7 @@ fn draw_positive(ctx: &DrawContext, dice: &mut Dice, d: f64) -> HysteresisSpec {
             };
             HysteresisSpec::PrandtlIshlinskii(PrandtlIshlinskiiSpec {
                 envelope_split: None,
+                envelopes: None,
                 linear_weight: d * (1.0 - share),
                 thresholds,
                 weights,
@@ -320,6 +322,46 @@ fn draw_positive(ctx: &DrawContext, dice: &mut Dice, d: f64) -> HysteresisSpec {
             })
         }
     }
+}
+
+/// Generalised plays drawn on a Prandtl-Ishlinskii operator driven by `input` (the zoo's
+/// `--extra hysteresis`; Al Janaideh, Rakheja & Su 2011): tanh envelopes of slope 1 at u = 0,
+/// one on the ascending edge and another on the descending edge
+/// ([`TanhEnvelope::unit_slope`]), in place of Kuhnen's dead zones (a Bouc-Wen loop or a gain
+/// is left as it is: `None`).
+///
+/// | parameter | range |
+/// |---|---|
+/// | ascending level L (saturation, input units) | the input's peak U over L uniform 0.4-1.6 (slope at the peak 15-85 % of that at 0) |
+/// | descending level | L times log-uniform 0.75-1.33 |
+/// | skew of each (the tanh's offset) | uniform -0.4-0.4: one end bends sooner than the other |
+pub fn draw_envelopes(
+    spec: &HysteresisSpec,
+    input: &[f64],
+    dice: &mut Dice,
+) -> Option<HysteresisSpec> {
+    let HysteresisSpec::PrandtlIshlinskii(pi) = spec else {
+        return None;
+    };
+    let peak = input.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if !(peak > 0.0 && peak.is_finite()) {
+        return None;
+    }
+    let level = peak / dice.uniform(0.4, 1.6);
+    let ascending = TanhEnvelope::unit_slope(level, dice.uniform(-0.4, 0.4));
+    let descending = TanhEnvelope::unit_slope(
+        level * dice.log_uniform(0.75, 1.33),
+        dice.uniform(-0.4, 0.4),
+    );
+    Some(HysteresisSpec::PrandtlIshlinskii(PrandtlIshlinskiiSpec {
+        envelopes: Some(Box::new(EnvelopesSpec {
+            ascending,
+            descending,
+        })),
+        envelope_split: None,
+        dead_zones: None,
+        ..pi.clone()
+    }))
 }
 
 /// A grey-box Bouc-Wen column: the scale of its B (the input's range) and the path's sign.
@@ -894,6 +936,7 @@ impl TermFit for PiTerm<'_> {
         });
         let spec = PrandtlIshlinskiiSpec {
             envelope_split: self.split_at(th),
+            envelopes: None,
             linear_weight: gain,
             thresholds: self.thresholds.clone(),
             weights: coef[..n].iter().map(|w| self.sign * w).collect(),
@@ -1017,7 +1060,8 @@ impl<'a> OutputMapTerm<'a> {
         else {
             return None;
         };
-        if pi.dead_zones.is_some() || pi.initial_state != 0.0 {
+        // the second stage refits classical or split plays (not tanh envelopes) under its map
+        if pi.dead_zones.is_some() || pi.initial_state != 0.0 || pi.envelopes.is_some() {
             return None;
         }
         let z = prev.output.as_slice();
@@ -1673,6 +1717,18 @@ impl Effect for HysteresisEffect {
     fn draw(&self, ctx: &DrawContext, dice: &mut Dice) -> Option<Box<dyn EffectSpec>> {
         Some(Box::new(draw(ctx, dice)))
     }
+    fn draw_onto_path(
+        &self,
+        existing: &dyn EffectSpec,
+        input: &[f64],
+        dice: &mut Dice,
+    ) -> Option<Box<dyn EffectSpec>> {
+        let spec = existing.as_any().downcast_ref::<HysteresisSpec>()?;
+        draw_envelopes(spec, input, dice).map(|s| Box::new(s) as Box<dyn EffectSpec>)
+    }
+    fn draws_onto_paths(&self) -> bool {
+        true
+    }
     fn basis<'a>(&self, ctx: &BasisContext<'a>) -> Option<BasisBank<'a>> {
         Some(basis(ctx))
     }
@@ -1932,6 +1988,7 @@ mod tests {
         };
         let pi = HysteresisSpec::PrandtlIshlinskii(PrandtlIshlinskiiSpec {
             envelope_split: None,
+            envelopes: None,
             linear_weight: 0.5,
             thresholds: vec![1.0, 2.5, 4.0],
             weights: vec![0.2, 0.1, 0.05],
@@ -2082,6 +2139,7 @@ mod tests {
             .collect();
         let pi = PrandtlIshlinskiiSpec {
             envelope_split: None,
+            envelopes: None,
             linear_weight: 0.7,
             thresholds: vec![0.5, 1.2, 2.0, 2.9],
             weights: vec![0.2, 0.1, 0.05, 0.02],
@@ -2172,6 +2230,7 @@ mod tests {
     fn first_stage_of(z: &[f64]) -> (PrandtlIshlinskiiSpec, super::super::fitting::PreviousPath) {
         let pi = PrandtlIshlinskiiSpec {
             envelope_split: None,
+            envelopes: None,
             linear_weight: 1.0,
             thresholds: vec![1.0],
             weights: vec![0.5],

@@ -9,6 +9,9 @@
 //! polynomial): p(u) = sum_j a_j S_{z_j}(u) is added to the PI sum before the dead zones. It is
 //! linear in a_j, so the grey-box fit solves it with the play weights; it makes ascending and
 //! descending branches bend differently at the top and the bottom (asymmetric, saturating loops).
+//! Generalised PI (Al Janaideh, Rakheja & Su 2011): every play, the threshold-0 one that carries
+//! p0 included, rides tanh envelopes gamma(u) = a0 tanh(a1 u + a2) + a3, one on the ascending
+//! edge and another on the descending edge ([`EnvelopesSpec`]): asymmetric, saturating loops.
 //!
 //! ## References
 //! - K. Kuhnen, Eur. J. Control 9(4):407-418, 2003 (modified PI, dead-zone superposition).
@@ -19,7 +22,7 @@
 //!   nonlinearity for piezoceramic actuators with a modified Prandtl-Ishlinskii model",
 //!   IEEE Trans. Ind. Electron. 61(3):1583-1595, 2014 (static input map).
 
-use super::play::play_operator;
+use super::play::{generalised_play, play_operator};
 use super::{finite, non_negative, EffectError, Operator};
 use serde::{Deserialize, Serialize};
 
@@ -51,6 +54,75 @@ pub struct PrandtlIshlinskiiSpec {
     /// input, asymmetric about its middle (Al Janaideh, Rakheja & Su 2011).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub envelope_split: Option<[f64; 3]>,
+    /// Optional envelopes of generalised plays (Al Janaideh, Rakheja & Su 2011): every play,
+    /// the threshold-0 one included, follows `ascending`(u) - r_i going up and
+    /// `descending`(u) + r_i going down, in place of u -+ r_i. Not with `envelope_split`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub envelopes: Option<Box<EnvelopesSpec>>,
+}
+
+/// An envelope of a generalised play, gamma(u) = a0 tanh(a1 u + a2) + a3 (a0 in output units of
+/// the plays, a1 per input unit): continuous and increasing (a0, a1 > 0), saturating at a3 -+ a0.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TanhEnvelope {
+    pub a0: f64,
+    pub a1: f64,
+    pub a2: f64,
+    pub a3: f64,
+}
+
+impl TanhEnvelope {
+    /// gamma(u).
+    #[inline]
+    pub fn at(&self, u: f64) -> f64 {
+        self.a0 * (self.a1 * u + self.a2).tanh() + self.a3
+    }
+
+    /// The envelope through 0 at u = 0 with slope 1 there, saturating at `level` (> 0) above
+    /// and below its offset: `skew` (the tanh's a2) bends one end sooner than the other.
+    pub fn unit_slope(level: f64, skew: f64) -> TanhEnvelope {
+        let t = skew.tanh();
+        let a0 = level;
+        let a1 = 1.0 / (level * (1.0 - t * t));
+        TanhEnvelope {
+            a0,
+            a1,
+            a2: skew,
+            a3: -a0 * t,
+        }
+    }
+
+    fn check(&self, field: &str) -> Result<(), EffectError> {
+        for (name, v) in [
+            ("a0", self.a0),
+            ("a1", self.a1),
+            ("a2", self.a2),
+            ("a3", self.a3),
+        ] {
+            finite(&format!("{field}.{name}"), v)?;
+        }
+        for (name, v) in [("a0", self.a0), ("a1", self.a1)] {
+            if v <= 0.0 {
+                return Err(EffectError::Invalid {
+                    field: format!("{field}.{name}"),
+                    value: v,
+                    rule: "must be > 0: an envelope increases with the input".into(),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The two envelopes of generalised plays.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnvelopesSpec {
+    /// gamma_l: the edge a play rides going up (minus its threshold).
+    pub ascending: TanhEnvelope,
+    /// gamma_r: the edge a play rides going down (plus its threshold).
+    pub descending: TanhEnvelope,
 }
 
 /// Dead-zone superposition S[y] = sum_j c_j S_{d_j}(y).
@@ -74,6 +146,8 @@ pub struct PrandtlIshlinskii {
     pub dead_zones: Option<(Vec<f64>, Vec<f64>)>,
     /// The envelopes' split e(u) = c0 + c1 u + c2 u^2, when there is one.
     pub envelope_split: Option<[f64; 3]>,
+    /// Tanh envelopes of generalised plays, when there are some.
+    pub envelopes: Option<Box<EnvelopesSpec>>,
 }
 
 fn increasing(field: &str, v: &[f64], strictly_positive: bool) -> Result<(), EffectError> {
@@ -135,7 +209,18 @@ impl PrandtlIshlinskiiSpec {
                 finite(&format!("envelope_split[{i}]"), v)?;
             }
         }
+        if let Some(e) = &self.envelopes {
+            e.ascending.check("envelopes.ascending")?;
+            e.descending.check("envelopes.descending")?;
+            if self.envelope_split.is_some() {
+                return Err(EffectError::Shape {
+                    field: "envelopes".into(),
+                    rule: "and `envelope_split` both generalise the plays; give one of them".into(),
+                });
+            }
+        }
         Ok(PrandtlIshlinskii {
+            envelopes: self.envelopes.clone(),
             linear_weight: self.linear_weight,
             thresholds: self.thresholds.clone(),
             weights: self.weights.clone(),
@@ -238,6 +323,7 @@ impl PrandtlIshlinskii {
         PrandtlIshlinskiiOp {
             params: self.clone(),
             states: vec![self.initial_state; self.thresholds.len()],
+            linear_state: self.initial_state,
         }
     }
 }
@@ -261,6 +347,13 @@ impl PrandtlIshlinskii {
                 "input_map",
                 f64::NAN,
                 "a static input map has no closed-form inverse (compensate inverts it numerically)",
+            ));
+        }
+        if self.envelopes.is_some() {
+            return Err(bad(
+                "envelopes",
+                f64::NAN,
+                "generalised plays have no closed-form inverse here (compensate inverts them numerically)",
             ));
         }
         if self.envelope_split.is_some() {
@@ -315,6 +408,7 @@ impl PrandtlIshlinskii {
                 input_map: None,
                 dead_zones: None,
                 envelope_split: None,
+                envelopes: None,
             },
             dead_zones: self.dead_zones.clone(),
         })
@@ -406,21 +500,35 @@ impl Operator for InversePrandtlIshlinskiiOp {
 pub struct PrandtlIshlinskiiOp {
     params: PrandtlIshlinskii,
     states: Vec<f64>,
+    /// The threshold-0 play's state (generalised plays only: else the input itself).
+    linear_state: f64,
 }
 
 impl Operator for PrandtlIshlinskiiOp {
     fn reset(&mut self) {
         self.states.fill(self.params.initial_state);
+        self.linear_state = self.params.initial_state;
     }
 
     #[inline]
     fn step(&mut self, u: f64) -> f64 {
         let p = &self.params;
-        let mut y = p.linear_weight * u;
-        let e = p.envelope_split.map_or(0.0, |c| envelope_split(&c, u));
-        for ((z, &r), &w) in self.states.iter_mut().zip(&p.thresholds).zip(&p.weights) {
-            *z = play_operator(u, r - e, *z);
-            y += w * *z;
+        let mut y;
+        if let Some(env) = &p.envelopes {
+            let (up, down) = (env.ascending.at(u), env.descending.at(u));
+            self.linear_state = generalised_play(up, down, 0.0, self.linear_state);
+            y = p.linear_weight * self.linear_state;
+            for ((z, &r), &w) in self.states.iter_mut().zip(&p.thresholds).zip(&p.weights) {
+                *z = generalised_play(up, down, r, *z);
+                y += w * *z;
+            }
+        } else {
+            y = p.linear_weight * u;
+            let e = p.envelope_split.map_or(0.0, |c| envelope_split(&c, u));
+            for ((z, &r), &w) in self.states.iter_mut().zip(&p.thresholds).zip(&p.weights) {
+                *z = play_operator(u, r - e, *z);
+                y += w * *z;
+            }
         }
         if let Some((z, a)) = &p.input_map {
             y += z
@@ -443,6 +551,7 @@ mod tests {
     fn spec() -> PrandtlIshlinskiiSpec {
         PrandtlIshlinskiiSpec {
             envelope_split: None,
+            envelopes: None,
             linear_weight: 0.6,
             thresholds: vec![4.0, 8.0, 12.0],
             weights: vec![0.1, 0.07, 0.05],
@@ -496,6 +605,18 @@ mod tests {
         assert!(e.contains("input_map"), "{e}");
     }
 
+    /// Rate independence: `z`, the operator's output over 25 sin(2 pi k / 500), k < 4,000, is
+    /// what the same path at half the rate gives every other sample.
+    fn assert_rate_independent(p: &PrandtlIshlinskii, z: &[f64]) {
+        let slow: Vec<f64> = (0..8_000)
+            .map(|k| 25.0 * (k as f64 * 1e-3 * std::f64::consts::TAU).sin())
+            .collect();
+        let zs = p.operator().apply(&slow);
+        for k in (0..4_000).step_by(97) {
+            assert!((zs[2 * k] - z[k]).abs() < 1e-9, "sample {k}");
+        }
+    }
+
     /// Generalised plays (Al Janaideh, Rakheja & Su 2011): a zero split is the classical
     /// operator to the bit; with a split, a play driven far up rides its ascending envelope
     /// u + e(u) - r and driven far down its descending one u - e(u) + r; the loop stays rate
@@ -518,6 +639,7 @@ mod tests {
             thresholds: vec![4.0],
             weights: vec![1.0],
             envelope_split: Some(c),
+            envelopes: None,
             ..spec()
         };
         let p = single.check().unwrap();
@@ -549,15 +671,75 @@ mod tests {
         };
         let (wp, wn) = (width(20.0), width(-20.0));
         assert!((wp - wn).abs() > 1.0, "widths {wp} and {wn}");
-        // rate independence: the same path at half the rate, every other sample
-        let slow: Vec<f64> = (0..8_000)
-            .map(|k| 25.0 * (k as f64 * 1e-3 * std::f64::consts::TAU).sin())
-            .collect();
-        let zs = p.operator().apply(&slow);
-        for k in (0..4_000).step_by(97) {
-            assert!((zs[2 * k] - z[k]).abs() < 1e-9, "sample {k}");
-        }
+        assert_rate_independent(&p, &z);
         let err = p.inverse().unwrap_err().to_string();
+        assert!(err.contains("envelope_split"), "{err}");
+    }
+
+    /// Tanh envelopes (Al Janaideh, Rakheja & Su 2011): equal envelopes make the classical
+    /// operator of gamma(u) to the bit; apart, a play driven far up rides gamma_l(u) - r and far
+    /// down gamma_r(u) + r, the loop is rate independent, and bad envelopes are refused by name.
+    #[test]
+    fn tanh_envelopes_make_generalised_plays() {
+        let u: Vec<f64> = (0..4_000)
+            .map(|k| 25.0 * (k as f64 * 2e-3 * std::f64::consts::TAU).sin())
+            .collect();
+        let g = TanhEnvelope::unit_slope(30.0, 0.3);
+        assert!(g.at(0.0).abs() < 1e-12);
+        assert!(((g.at(1e-6) - g.at(-1e-6)) / 2e-6 - 1.0).abs() < 1e-6);
+        let mut same = spec();
+        same.envelopes = Some(Box::new(EnvelopesSpec {
+            ascending: g,
+            descending: g,
+        }));
+        let gu: Vec<f64> = u.iter().map(|&v| g.at(v)).collect();
+        assert_eq!(
+            same.check().unwrap().operator().apply(&u),
+            spec().check().unwrap().operator().apply(&gu)
+        );
+
+        let (up, down) = (
+            TanhEnvelope::unit_slope(28.0, 0.35),
+            TanhEnvelope::unit_slope(34.0, -0.2),
+        );
+        let mut s = spec();
+        s.envelopes = Some(Box::new(EnvelopesSpec {
+            ascending: up,
+            descending: down,
+        }));
+        let p = s.check().unwrap();
+        let z = p.operator().apply(&u);
+        // at the top of a sweep every play is on its ascending edge, at the bottom on its
+        // descending one
+        let edge = |e: &TanhEnvelope, v: f64, sign: f64| {
+            p.linear_weight * e.at(v)
+                + p.thresholds
+                    .iter()
+                    .zip(&p.weights)
+                    .map(|(&r, &w)| w * (e.at(v) - sign * r))
+                    .sum::<f64>()
+        };
+        let (top, bottom) = (625, 875);
+        assert!(
+            (z[top] - edge(&up, u[top], 1.0)).abs() < 1e-12,
+            "top {}",
+            z[top]
+        );
+        assert!((z[bottom] - edge(&down, u[bottom], -1.0)).abs() < 1e-12);
+        assert_rate_independent(&p, &z);
+        // the loop runs counter-clockwise: going up below going down at the same input
+        let (rising, falling) = (z[1_010], z[1_240]);
+        assert!((u[1_010] - u[1_240]).abs() < 1e-9 && rising < falling);
+        let err = p.inverse().unwrap_err().to_string();
+        assert!(err.contains("envelopes"), "{err}");
+
+        let mut bad = s.clone();
+        bad.envelopes.as_mut().unwrap().descending.a1 = -0.1;
+        let err = bad.check().unwrap_err().to_string();
+        assert!(err.contains("envelopes.descending.a1"), "{err}");
+        let mut both = s.clone();
+        both.envelope_split = Some([0.1, 0.0, 0.0]);
+        let err = both.check().unwrap_err().to_string();
         assert!(err.contains("envelope_split"), "{err}");
     }
 

@@ -100,6 +100,21 @@ pub trait Effect: Send + Sync + 'static {
     ) -> Option<Box<dyn EffectSpec>> {
         None
     }
+    /// For the zoo's `--extra` effects on a path term: `existing` (this effect's spec on a path
+    /// driven by `input`) with a drawn variant on top of it (tanh envelopes on a
+    /// Prandtl-Ishlinskii operator). `None`: the path keeps what it has.
+    fn draw_onto_path(
+        &self,
+        _existing: &dyn EffectSpec,
+        _input: &[f64],
+        _dice: &mut Dice,
+    ) -> Option<Box<dyn EffectSpec>> {
+        None
+    }
+    /// Whether [`Effect::draw_onto_path`] draws anything for some paths.
+    fn draws_onto_paths(&self) -> bool {
+        false
+    }
     /// For an effect that is a structure: does the plant have it?
     fn in_structure(&self, _plant: &StructureView) -> bool {
         false

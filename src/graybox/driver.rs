@@ -1496,7 +1496,8 @@ fn first_stage_path(
         .find(|e| {
             matches!(
                 e.as_any().downcast_ref::<HysteresisSpec>(),
-                Some(HysteresisSpec::PrandtlIshlinskii(p)) if p.dead_zones.is_none()
+                Some(HysteresisSpec::PrandtlIshlinskii(p))
+                    if p.dead_zones.is_none() && p.envelopes.is_none()
             )
         })?;
     let mut op = pi.check().ok()?.operator(ts).ok()?;
@@ -2274,6 +2275,7 @@ mod tests {
         use crate::effect::Operator;
         let first = PrandtlIshlinskiiSpec {
             envelope_split: None,
+            envelopes: None,
             linear_weight: 0.6,
             thresholds: vec![4.0, 9.0, 15.0, 22.0],
             weights: vec![0.1, 0.0, 0.06, 0.03],

@@ -52,7 +52,7 @@ pub enum ZooError {
     NoMembers,
     #[error("--count {count}: at most {MAX_MEMBERS} members in one zoo; make several zoos with different --seed")]
     TooMany { count: usize },
-    #[error("--extra {effect}: the zoo draws only effects sized by an output's range on top of its plants ({allowed})")]
+    #[error("--extra {effect}: the zoo draws only effects sized by an output's range, or drawn on a path's operator, on top of its plants ({allowed})")]
     Extra { effect: String, allowed: String },
     #[error("{dir}: exists and is not a zoo folder (no {INDEX}); choose another folder")]
     NotAZoo { dir: PathBuf },
@@ -248,8 +248,28 @@ fn draw_extra(
             .map_err(|source| ZooError::Plant { index, source })?;
         let clean = simulate_scenario(&plant, &scenario, None)
             .map_err(|source| ZooError::Simulate { index, source })?;
+        let inputs = &m.plant.inputs;
         for (o, out) in m.plant.outputs.iter_mut().enumerate() {
             if !dice.chance(0.5) {
+                continue;
+            }
+            if effect.draws_onto_paths() {
+                // on every path of the output that has the effect, driven by its input
+                for path in out.paths.iter_mut() {
+                    let Some(j) = inputs.iter().position(|i| *i == path.input) else {
+                        continue;
+                    };
+                    let u = &clean.record.inputs[j].values;
+                    for spec in path.effects.iter_mut().filter(|s| s.effect() == name) {
+                        if let Some(new) = effect.draw_onto_path(spec.as_ref(), u, &mut dice) {
+                            *spec = new;
+                            drawn.push((
+                                out.name.clone(),
+                                format!("{name} on the path of {}", path.input),
+                            ));
+                        }
+                    }
+                }
                 continue;
             }
             let y = &clean.record.outputs[o].values;
@@ -312,8 +332,9 @@ pub fn make(
     }
     let drawable = |e: &dyn crate::effect::Effect| {
         let probe: Vec<f64> = (0..100).map(|k| (0.1 * k as f64).sin()).collect();
-        e.draw_on_output(&probe, 1e-3, &mut crate::effect::draw::Dice::new(0, 0))
-            .is_some()
+        e.draws_onto_paths()
+            || e.draw_on_output(&probe, 1e-3, &mut crate::effect::draw::Dice::new(0, 0))
+                .is_some()
     };
     for name in extra {
         if !crate::effect::registry::effect(*name).is_some_and(drawable) {
