@@ -224,6 +224,14 @@ fn bad_plant_files_are_named_and_explained() {
             &["p.json", "thresholds[1]", "strictly increasing"],
         ),
         (
+            r#"{"name":"p","inputs":["u"],"outputs":[{"name":"y","paths":[{"input":"u","hysteresis":{"prandtl_ishlinskii":{"linear_weight":0.6,"thresholds":[4],"weights":[0.1],"envelopes":{"ascending":{"a0":30,"a1":0.03,"a2":0,"a3":0},"descending":{"a0":30,"a1":-0.03,"a2":0,"a3":0}}}}}]}]}"#,
+            &["p.json", "envelopes.descending.a1", "-0.03", "> 0"],
+        ),
+        (
+            r#"{"name":"p","inputs":["u"],"outputs":[{"name":"y","paths":[{"input":"u","hysteresis":{"prandtl_ishlinskii":{"linear_weight":0.6,"thresholds":[4],"weights":[0.1],"envelopes":{"ascending":{"a0":30,"a1":0.03,"a2":0,"a3":0}}}}}]}]}"#,
+            &["p.json", "missing field `descending`", "line 1"],
+        ),
+        (
             r#"{"name":"p","inputs":["u"],"outputs":[{"name":"y","paths":[{"input":"u","hysteresis":{"linear":{"gain":1}}}],"creep":{"time_constants_s":[-1],"gains":[0.1]}}]}"#,
             &["p.json", "time_constants_s[0]", "-1", "> 0"],
         ),
