@@ -545,8 +545,11 @@ fn extra_hysteresis_draws_generalised_plays_on_prandtl_ishlinskii_paths() {
     let mut generalised = 0;
     for e in &index.members {
         let p = PlantSpec::read(&out.join(&e.plant)).unwrap();
+        let rec = hystbench::data::read_csv(&out.join(&e.record)).unwrap();
         let mut default = zoo::member(3, e.index).plant;
         for (o, d) in p.outputs.iter().zip(default.outputs.iter_mut()) {
+            // an output drawn gets envelopes on every Prandtl-Ishlinskii path
+            let (mut pi_paths, mut enveloped) = (0, 0);
             for (path, dp) in o.paths.iter().zip(d.paths.iter_mut()) {
                 for (x, dx) in path.effects.iter().zip(dp.effects.iter_mut()) {
                     let (Some(HysteresisSpec::PrandtlIshlinskii(now)), Some(before)) = (
@@ -555,9 +558,26 @@ fn extra_hysteresis_draws_generalised_plays_on_prandtl_ishlinskii_paths() {
                     ) else {
                         continue;
                     };
+                    pi_paths += 1;
                     let Some(env) = &now.envelopes else {
                         continue;
                     };
+                    enveloped += 1;
+                    // sized by the path's input peak U: U / L in 0.4-1.6, the descending level
+                    // 0.75-1.33 times the ascending one, skews within 0.4
+                    let col = rec.names.iter().position(|n| *n == path.input).unwrap();
+                    let peak = rec.columns[col].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                    let (up, down) = (env.ascending, env.descending);
+                    let tol = 1e-9;
+                    assert!(
+                        (0.4 - tol..=1.6 + tol).contains(&(peak / up.a0)),
+                        "{env:?} {peak}"
+                    );
+                    assert!(
+                        (0.75 - tol..=1.33 + tol).contains(&(down.a0 / up.a0)),
+                        "{env:?}"
+                    );
+                    assert!(up.a2.abs() <= 0.4 && down.a2.abs() <= 0.4, "{env:?}");
                     let HysteresisSpec::PrandtlIshlinskii(b) = before else {
                         panic!("envelopes drawn on {before:?}");
                     };
@@ -579,6 +599,11 @@ fn extra_hysteresis_draws_generalised_plays_on_prandtl_ishlinskii_paths() {
                     *dx = x.clone();
                 }
             }
+            assert!(
+                enveloped == 0 || enveloped == pi_paths,
+                "member {}",
+                e.index
+            );
         }
         assert_eq!(p.outputs, default.outputs, "member {}", e.index);
     }

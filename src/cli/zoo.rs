@@ -29,7 +29,8 @@ pub struct Args {
     pub classes: Vec<zoo::Class>,
     /// Effects drawn on top of the default zoo, sized by each output's range (comma-separated:
     /// drift, saturation; dynamics: a second mode and a hold on an output's mode; hysteresis:
-    /// Al Janaideh's tanh envelopes on its Prandtl-Ishlinskii paths); each output gets each
+    /// Al Janaideh's tanh envelopes on the output's Prandtl-Ishlinskii paths, sized by each
+    /// path's input peak); each output gets each
     /// with probability 1/2, from a stream of its own, so that the rest of every member is the
     /// default zoo's.
     #[arg(long, value_delimiter = ',')]

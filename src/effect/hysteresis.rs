@@ -332,9 +332,14 @@ fn draw_positive(ctx: &DrawContext, dice: &mut Dice, d: f64) -> HysteresisSpec {
 ///
 /// | parameter | range |
 /// |---|---|
-/// | ascending level L (saturation, input units) | the input's peak U over L uniform 0.4-1.6 (slope at the peak 15-85 % of that at 0) |
+/// | ascending level L (saturation, input units) | the input's peak U over L uniform 0.4-1.6 (without skew, the slope at the peak 15-85 % of that at 0; with one, an end flattens sooner and the other later) |
 /// | descending level | L times log-uniform 0.75-1.33 |
 /// | skew of each (the tanh's offset) | uniform -0.4-0.4: one end bends sooner than the other |
+///
+/// The two are drawn apart, so they may cross (both pass through 0 with slope 1): where the
+/// ascending one lies above the descending one, a play of threshold below half their gap has
+/// no band there and follows the ascending one, as in the independent generator's draw of the
+/// family (`benches/independent`).
 pub fn draw_envelopes(
     spec: &HysteresisSpec,
     input: &[f64],
@@ -2002,8 +2007,17 @@ mod tests {
                 weights: vec![0.3, 1.0, -0.25],
             }),
         });
+        // generalised plays on tanh envelopes, with the dead zones: the envelopes act on the
+        // input, the weights and dead zones as before
+        let mut gpi = pi.clone();
+        if let HysteresisSpec::PrandtlIshlinskii(g) = &mut gpi {
+            g.envelopes = Some(Box::new(EnvelopesSpec {
+                ascending: TanhEnvelope::unit_slope(7.0, 0.3),
+                descending: TanhEnvelope::unit_slope(8.0, -0.2),
+            }));
+        }
         let lin = HysteresisSpec::Linear(LinearSpec { gain: 0.7 });
-        for spec in [bw(1.0), bw(2.0), pi, lin] {
+        for spec in [bw(1.0), bw(2.0), pi, gpi, lin] {
             let y = spec.check().unwrap().operator().apply(&u);
             let neg = spec.negated().check().unwrap().operator().apply(&u);
             let err = y

@@ -709,6 +709,13 @@ mod tests {
         }));
         let p = s.check().unwrap();
         let z = p.operator().apply(&u);
+        // a reset puts the threshold-0 play back at rest too (started where the input is
+        // away from 0, where the envelopes do not pin it)
+        let fresh = p.operator().apply(&u[200..]);
+        let mut op = p.operator();
+        op.apply(&u[..150]);
+        op.reset();
+        assert_eq!(op.apply(&u[200..]), fresh);
         // at the top of a sweep every play is on its ascending edge, at the bottom on its
         // descending one
         let edge = |e: &TanhEnvelope, v: f64, sign: f64| {

@@ -98,7 +98,8 @@ pub struct ZooIndex {
     pub format: String,
     pub version: u32,
     pub seed: u64,
-    /// Effects drawn on top of the default zoo (`zoo --extra`), sized by each output's range.
+    /// Effects drawn on top of the default zoo (`zoo --extra`), sized by each output's range
+    /// (hysteresis: by each path's input peak).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub extra: Vec<crate::effect::EffectName>,
     pub members: Vec<IndexEntry>,
