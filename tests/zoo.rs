@@ -566,7 +566,7 @@ fn extra_hysteresis_draws_generalised_plays_on_prandtl_ishlinskii_paths() {
                     // sized by the path's input peak U: U / L in 0.4-1.6, the descending level
                     // 0.75-1.33 times the ascending one, skews within 0.4
                     let col = rec.names.iter().position(|n| *n == path.input).unwrap();
-                    let peak = rec.columns[col].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                    let peak = hystbench::metrics::max_abs(&rec.columns[col]);
                     let (up, down) = (env.ascending, env.descending);
                     let tol = 1e-9;
                     assert!(

@@ -348,7 +348,7 @@ pub fn draw_envelopes(
     let HysteresisSpec::PrandtlIshlinskii(pi) = spec else {
         return None;
     };
-    let peak = input.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let peak = crate::metrics::max_abs(input);
     if !(peak > 0.0 && peak.is_finite()) {
         return None;
     }
