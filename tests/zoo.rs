@@ -477,6 +477,23 @@ fn extra_effects_are_drawn_on_top_of_the_default_zoo() {
     assert!(!dir.path().join("z2").exists());
 }
 
+/// `--extra` effects are drawn in chain order, each once, whatever order they are typed in:
+/// saturation's limits are sized on the output that hysteresis's envelopes made, and the same
+/// set gives the same bytes.
+#[test]
+fn extra_effects_are_drawn_in_chain_order_whatever_the_order_typed() {
+    let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let (za, ia) = extra_zoo(a.path(), "saturation,hysteresis,saturation");
+    let (zb, ib) = extra_zoo(b.path(), "hysteresis,saturation");
+    let names: Vec<&str> = ia.extra.iter().map(|e| e.as_str()).collect();
+    assert_eq!(names, ["hysteresis", "saturation"]);
+    assert_eq!(ia.extra, ib.extra);
+    assert!(
+        files(&za) == files(&zb),
+        "the same set typed in another order drew other bytes"
+    );
+}
+
 /// `--extra dynamics` puts a second mode and a hold on top of an output's mode (or a mode with
 /// both on an output without one); the rest of every member is the default zoo's.
 #[test]

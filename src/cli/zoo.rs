@@ -32,7 +32,8 @@ pub struct Args {
     /// Al Janaideh's tanh envelopes on the output's Prandtl-Ishlinskii paths, sized by each
     /// path's input peak); each output gets each
     /// with probability 1/2, from a stream of its own, so that the rest of every member is the
-    /// default zoo's.
+    /// default zoo's. They are drawn in chain order (hysteresis, dynamics, drift, saturation),
+    /// each once, whatever the order typed.
     #[arg(long, value_delimiter = ',')]
     pub extra: Vec<hystbench::effect::EffectName>,
     /// Replace an existing zoo folder.

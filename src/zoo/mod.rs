@@ -315,6 +315,7 @@ pub fn member_indices(seed: u64, count: usize, classes: &[Class]) -> Vec<usize> 
 /// folder is written whole or not at all (built beside it, then moved in place); an existing
 /// zoo is replaced only with `force`, and a folder that is not a zoo never. `progress` hears
 /// each member as it is done (in any order).
+/// The `extra` effects are drawn in chain order, each once, whatever order they come in.
 #[allow(clippy::too_many_arguments)]
 pub fn make(
     dir: &Path,
@@ -350,6 +351,13 @@ pub fn make(
             });
         }
     }
+    // drawn in chain order, each once, whatever order they were typed in: an effect later in
+    // the chain (saturation's limits) is sized on what the earlier ones (hysteresis's
+    // envelopes) made of the output, and the same set draws the same plants
+    let mut extra = extra.to_vec();
+    extra.sort();
+    extra.dedup();
+    let extra = &extra[..];
     let replace = check_target(dir, force)?;
     let files: Vec<MemberFiles> = member_indices(seed, count, classes)
         .into_par_iter()
