@@ -477,6 +477,72 @@ fn extra_effects_are_drawn_on_top_of_the_default_zoo() {
     assert!(!dir.path().join("z2").exists());
 }
 
+/// `--realization 1` draws the same plants and protocols with other records (each scenario's
+/// seed one further on), and `simulate` with a member's files gives its record again.
+#[test]
+fn a_realization_keeps_the_plants_and_draws_other_records() {
+    let dir = tempfile::tempdir().unwrap();
+    let zoo_of = |name: &str, realization: &str| {
+        let out = dir.path().join(name);
+        let o = hystbench(&[
+            "zoo",
+            "--count",
+            "4",
+            "--seed",
+            "3",
+            "--realization",
+            realization,
+            "--out",
+            s(&out),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        (out.clone(), ZooIndex::read(&out).unwrap())
+    };
+    let (z0, i0) = zoo_of("z0", "0");
+    let (z1, i1) = zoo_of("z1", "1");
+    assert_eq!((i0.realization, i1.realization), (0, 1));
+    for (a, b) in i0.members.iter().zip(&i1.members) {
+        assert_eq!(
+            std::fs::read(z0.join(&a.plant)).unwrap(),
+            std::fs::read(z1.join(&b.plant)).unwrap()
+        );
+        let (s0, s1) = (
+            hystbench::scenario::ScenarioSpec::read(&z0.join(&a.scenario)).unwrap(),
+            hystbench::scenario::ScenarioSpec::read(&z1.join(&b.scenario)).unwrap(),
+        );
+        assert_eq!(s1.seed, s0.seed + 1);
+        assert_eq!(
+            s1.inputs, s0.inputs,
+            "member {}: the protocol changed",
+            a.index
+        );
+        assert_ne!(
+            std::fs::read(z0.join(&a.record)).unwrap(),
+            std::fs::read(z1.join(&b.record)).unwrap(),
+            "member {}: the same record",
+            a.index
+        );
+        let again = dir.path().join(format!("again{}.csv", b.index));
+        let o = hystbench(&[
+            "simulate",
+            "--plant",
+            s(&z1.join(&b.plant)),
+            "--scenario",
+            s(&z1.join(&b.scenario)),
+            "--out",
+            s(&again),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert_eq!(
+            std::fs::read(&again).unwrap(),
+            std::fs::read(z1.join(&b.record)).unwrap()
+        );
+    }
+    // the zoo as drawn writes no `realization`: an older zoo reads the same
+    let text = std::fs::read_to_string(z0.join("zoo.json")).unwrap();
+    assert!(!text.contains("realization"));
+}
+
 /// `--extra` effects are drawn in chain order, each once, whatever order they are typed in:
 /// saturation's limits are sized on the output that hysteresis's envelopes made, and the same
 /// set gives the same bytes.

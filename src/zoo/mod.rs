@@ -102,6 +102,10 @@ pub struct ZooIndex {
     /// (hysteresis: by each path's input peak).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub extra: Vec<crate::effect::EffectName>,
+    /// The records' realization (`zoo --realization`): 0, the zoo as drawn; r, the same plants
+    /// and protocols with every scenario's seed r further on.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub realization: u64,
     pub members: Vec<IndexEntry>,
 }
 
@@ -154,6 +158,10 @@ impl ZooIndex {
     }
 }
 
+fn is_zero(r: &u64) -> bool {
+    *r == 0
+}
+
 /// The files of one member, in memory.
 struct MemberFiles {
     entry: IndexEntry,
@@ -165,15 +173,22 @@ struct MemberFiles {
 
 /// Draws member `index` and simulates its record: once without noise to measure each output's
 /// range, then with the noise the member draws (a share of that range) written into its
-/// scenario, so that `simulate` with the written files gives the same record.
+/// scenario, so that `simulate` with the written files gives the same record. Realization
+/// `realization` moves the scenario's seed that far (new noise, new draws of the random
+/// excitations) and leaves the plant and the protocol as drawn.
 fn make_member(
     seed: u64,
     index: usize,
     extra: &[crate::effect::EffectName],
+    realization: u64,
 ) -> Result<MemberFiles, ZooError> {
     let mut m = member(seed, index);
     if !extra.is_empty() {
         draw_extra(&mut m, seed, index, extra)?;
+    }
+    if realization > 0 {
+        m.scenario.seed = m.scenario.seed.wrapping_add(realization);
+        m.scenario.description += &format!(" Realization {realization}.");
     }
     let name = format!("{index:04}");
     let plant_path = PathBuf::from(format!("plants/{name}.json"));
@@ -316,6 +331,9 @@ pub fn member_indices(seed: u64, count: usize, classes: &[Class]) -> Vec<usize> 
 /// zoo is replaced only with `force`, and a folder that is not a zoo never. `progress` hears
 /// each member as it is done (in any order).
 /// The `extra` effects are drawn in chain order, each once, whatever order they come in.
+/// Realization `realization` > 0 draws the same plants and protocols with other records
+/// ([`ZooIndex::realization`]): a paired comparison of two identifiers on several
+/// realizations tells a change from the spread of the records.
 #[allow(clippy::too_many_arguments)]
 pub fn make(
     dir: &Path,
@@ -323,6 +341,7 @@ pub fn make(
     seed: u64,
     classes: &[Class],
     extra: &[crate::effect::EffectName],
+    realization: u64,
     force: bool,
     progress: &(dyn Fn(&IndexEntry) + Sync),
 ) -> Result<ZooIndex, ZooError> {
@@ -362,7 +381,7 @@ pub fn make(
     let files: Vec<MemberFiles> = member_indices(seed, count, classes)
         .into_par_iter()
         .map(|i| {
-            let f = make_member(seed, i, extra)?;
+            let f = make_member(seed, i, extra, realization)?;
             progress(&f.entry);
             Ok(f)
         })
@@ -372,6 +391,7 @@ pub fn make(
         version: VERSION,
         seed,
         extra: extra.to_vec(),
+        realization,
         members: files.iter().map(|f| f.entry.clone()).collect(),
     };
     let parent = match dir.parent() {
