@@ -8,6 +8,27 @@ use common::{hystbench, s, stderr};
 use hystbench::zoo::{self, Class, ZooIndex};
 use std::path::Path;
 
+/// `simulate` with member `m`'s plant and scenario files of zoo `dir` writes (to `out`) its
+/// record again, byte for byte.
+fn reruns(dir: &Path, m: &zoo::IndexEntry, out: &Path) {
+    let o = hystbench(&[
+        "simulate",
+        "--plant",
+        s(&dir.join(&m.plant)),
+        "--scenario",
+        s(&dir.join(&m.scenario)),
+        "--out",
+        s(out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read(out).unwrap(),
+        std::fs::read(dir.join(&m.record)).unwrap(),
+        "member {}",
+        m.index
+    );
+}
+
 fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
     let mut out = Vec::new();
     for sub in ["plants", "scenarios", "records"] {
@@ -72,22 +93,7 @@ fn a_zoo_is_reproducible_and_each_member_reruns_with_simulate() {
         std::fs::read(c.join(first)).unwrap()
     );
     // ... and its plant and scenario files give its record again
-    let m = &index.members[3];
-    let out = t.path().join("again.csv");
-    let o = hystbench(&[
-        "simulate",
-        "--plant",
-        s(&a.join(&m.plant)),
-        "--scenario",
-        s(&a.join(&m.scenario)),
-        "--out",
-        s(&out),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    assert_eq!(
-        std::fs::read(&out).unwrap(),
-        std::fs::read(a.join(&m.record)).unwrap()
-    );
+    reruns(&a, &index.members[3], &t.path().join("again.csv"));
     // another seed, another zoo
     let d = t.path().join("d");
     assert!(hystbench(&[
@@ -522,21 +528,7 @@ fn a_realization_keeps_the_plants_and_draws_other_records() {
             "member {}: the same record",
             a.index
         );
-        let again = dir.path().join(format!("again{}.csv", b.index));
-        let o = hystbench(&[
-            "simulate",
-            "--plant",
-            s(&z1.join(&b.plant)),
-            "--scenario",
-            s(&z1.join(&b.scenario)),
-            "--out",
-            s(&again),
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        assert_eq!(
-            std::fs::read(&again).unwrap(),
-            std::fs::read(z1.join(&b.record)).unwrap()
-        );
+        reruns(&z1, b, &dir.path().join(format!("again{}.csv", b.index)));
     }
     // the zoo as drawn writes no `realization`: an older zoo reads the same
     let text = std::fs::read_to_string(z0.join("zoo.json")).unwrap();
