@@ -24,6 +24,12 @@ pub enum JsonFileError {
     },
 }
 
+/// Whether a field holds its type's default (`serde(skip_serializing_if)`): a file leaves out
+/// an optional field at its default, so that files written before the field read the same.
+pub fn is_default<T: Default + PartialEq>(v: &T) -> bool {
+    *v == T::default()
+}
+
 /// Reads a JSON file's text; the error names the file.
 pub fn read_json_text(path: &Path) -> Result<String, JsonFileError> {
     std::fs::read_to_string(path).map_err(|source| JsonFileError::Read {

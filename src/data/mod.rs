@@ -21,6 +21,8 @@ pub use csv::{parse_csv, read_csv, CsvFormat, Record, TimeSteps};
 pub use error::DataError;
 pub use io_record::default_names;
 pub use io_record::{IoRecord, Signal};
-pub use json::{parse_json_file, read_json_file, read_json_text, FileHeader, JsonFileError};
+pub use json::{
+    is_default, parse_json_file, read_json_file, read_json_text, FileHeader, JsonFileError,
+};
 pub use split::{split_at_gaps, Part, Split};
 pub use write::{check_writable, format_csv, write_atomic, write_csv_atomic, OutputGuard};

@@ -59,10 +59,6 @@ pub struct ModeSpec {
     pub share: f64,
 }
 
-fn is_zero(v: &f64) -> bool {
-    *v == 0.0
-}
-
 /// Second-order dynamics as written in a plant file.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -80,7 +76,7 @@ pub struct DynamicsSpec {
     /// How the input runs between samples, 0 to 1: 0 held (zero-order hold: the output lags
     /// the input by a sample; the default), 1 ramped linearly to the next sample (first-order
     /// or triangle hold: a continuous input sampled), between them a blend of the two.
-    #[serde(default, skip_serializing_if = "is_zero")]
+    #[serde(default, skip_serializing_if = "crate::data::is_default")]
     pub first_order_hold: f64,
 }
 

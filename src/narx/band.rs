@@ -40,12 +40,8 @@ pub struct Band {
     /// The narrowest half-width (physical units, >= 0; 0: none): the `level` quantile of the
     /// magnitudes of the validation residuals, or on a short record of the cross-validated
     /// residuals over every sample ([`Band::with_floor`]).
-    #[serde(default, skip_serializing_if = "is_zero")]
+    #[serde(default, skip_serializing_if = "crate::data::is_default")]
     pub floor: f64,
-}
-
-fn is_zero(v: &f64) -> bool {
-    *v == 0.0
 }
 
 /// The split-conformal quantile of `scores` (not empty) at `level`: the ceil((n + 1) level)-th

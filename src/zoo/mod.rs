@@ -104,7 +104,7 @@ pub struct ZooIndex {
     pub extra: Vec<crate::effect::EffectName>,
     /// The records' realization (`zoo --realization`): 0, the zoo as drawn; r, the same plants
     /// and protocols with every scenario's seed r further on.
-    #[serde(default, skip_serializing_if = "is_zero")]
+    #[serde(default, skip_serializing_if = "crate::data::is_default")]
     pub realization: u64,
     pub members: Vec<IndexEntry>,
 }
@@ -156,10 +156,6 @@ impl ZooIndex {
         }
         Ok(index)
     }
-}
-
-fn is_zero(r: &u64) -> bool {
-    *r == 0
 }
 
 /// The files of one member, in memory.
