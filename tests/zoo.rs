@@ -369,6 +369,46 @@ fn a_small_zoo_is_scored_against_the_linear_baseline() {
     assert!(o.status.success(), "{}", stderr(&o));
     let alone: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(timeless(&alone), timeless(&v));
+    // fitted again on the noiseless training halves: the same scores beside those of the
+    // fits without noise, two columns more, and the table of why records miss the floor
+    let o = hystbench(&[
+        "zoo",
+        "score",
+        s(&z),
+        "--noiseless-training",
+        "--json",
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut again: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for r in again["records"].as_array_mut().unwrap() {
+        for out in r["outputs"].as_array_mut().unwrap() {
+            let n = out
+                .as_object_mut()
+                .unwrap()
+                .remove("noiseless_training")
+                .unwrap();
+            // a fit to the noiseless training half fits it
+            let train = n["r2_train"].as_f64().unwrap();
+            assert!(train > 0.99, "{n}");
+            assert!(n["r2"].is_number(), "{n}");
+        }
+    }
+    for c in again["classes"].as_array_mut().unwrap() {
+        assert!(c.as_object_mut().unwrap().remove("misses").is_some(), "{c}");
+    }
+    assert_eq!(timeless(&again), timeless(&v));
+    let csv = std::fs::read_to_string(z.join("score/results.csv")).unwrap();
+    assert!(csv
+        .lines()
+        .next()
+        .unwrap()
+        .ends_with(",noiseless_training_r2_train,noiseless_training_r2_clean"));
+    let report = std::fs::read_to_string(z.join("score/report.md")).unwrap();
+    assert!(
+        report.contains("Why the records below the floor miss it"),
+        "{report}"
+    );
 }
 
 /// `zoo loop`: on a small development zoo (seed 7, long and short 1-DoF members, first 3,000

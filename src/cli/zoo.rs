@@ -101,6 +101,13 @@ pub struct ScoreArgs {
     /// threads: the whole zoo sooner, the same scores).
     #[arg(long, conflicts_with = "merge")]
     pub one_at_a_time: bool,
+    /// Fit the identifier again on each record's noiseless training half (the plant's own
+    /// output, simulated again) and report why the records below the floor miss it: the noise
+    /// in the test half alone, the noise in the training half, a training half that does not
+    /// determine the test half, or a model family that misses even the noiseless training
+    /// half. Twice the time; for developers of the identifier.
+    #[arg(long, conflicts_with = "merge")]
+    pub noiseless_training: bool,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -268,7 +275,11 @@ fn score(a: ScoreArgs) -> anyhow::Result<()> {
     } else {
         zoo::Schedule::SideBySide
     };
-    let records = zoo::score_members(&a.dir, &take, schedule, &|r| {
+    let options = zoo::ScoreOptions {
+        schedule,
+        noiseless_training: a.noiseless_training,
+    };
+    let records = zoo::score_members(&a.dir, &take, options, &|r| {
         let k = k.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         progress.inc();
         if !a.quiet {

@@ -24,7 +24,9 @@ pub mod score;
 
 pub use draw::{member, Class, Member};
 pub use hidden::{score_loop, LoopOptions, LoopScore};
-pub use score::{score, score_members, RecordScore, Schedule, ZooScore};
+pub use score::{
+    score, score_members, Miss, NoiselessTraining, RecordScore, Schedule, ScoreOptions, ZooScore,
+};
 
 use crate::data::{format_csv, JsonFileError};
 use crate::plant::PlantError;

@@ -43,6 +43,80 @@ pub struct OutputScore {
     /// What the identifier made of this output ([`crate::narx::base::BaseUse`]): the network,
     /// the grey-box model alone, or the grey-box model under a network on its residual.
     pub model: BaseUse,
+    /// With `zoo score --noiseless-training`: the identifier fitted again on the noiseless
+    /// training half.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noiseless_training: Option<NoiselessTraining>,
+}
+
+/// One output of the identifier fitted on the noiseless training half instead of the
+/// measured one (`zoo score --noiseless-training`): its free-run R^2 on the noiseless training
+/// half, and on the noiseless test half (`None`: diverged, or the fit failed).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NoiselessTraining {
+    pub r2_train: Option<f64>,
+    pub r2: Option<f64>,
+}
+
+/// How much closer than its noiseless test half a model fitted on the noiseless training half
+/// must fit that training half (the ratio of their errors, 1 - R^2) for [`Miss::NotDetermined`]:
+/// a tenth, so that the test's error is not the training's carried on.
+pub const DETERMINED_RATIO: f64 = 0.1;
+
+/// Why an output below its class's threshold misses it, from the identifier fitted again on
+/// the noiseless training half (`zoo score --noiseless-training`). The order is the
+/// precedence of a record's outputs ([`Miss::of_record`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Miss {
+    /// The true plant misses too: the measurement noise in the test half alone does it.
+    NoiseCeiling,
+    /// Fitted without noise, the identifier still misses the training half: the model family,
+    /// or its fit, lacks what the plant does.
+    FitMissesTraining,
+    /// Fitted without noise, it fits the training half (its error there at most
+    /// [`DETERMINED_RATIO`] of the test half's) and misses the test half: the training half
+    /// leaves undetermined what the test half asks.
+    NotDetermined,
+    /// Fitted without noise, it reaches the threshold on the noiseless test half: the noise
+    /// in the training half costs it.
+    TrainingNoise,
+}
+
+impl Miss {
+    /// Why output `o` misses `threshold` (`None`: it does not, or it was not fitted again
+    /// without noise).
+    pub fn of_output(o: &OutputScore, threshold: f64) -> Option<Miss> {
+        if o.r2.is_some_and(|v| v >= threshold) {
+            return None;
+        }
+        let n = o.noiseless_training.as_ref()?;
+        if !o.truth_r2.is_some_and(|v| v >= threshold) {
+            return Some(Miss::NoiseCeiling);
+        }
+        Some(match (n.r2_train, n.r2) {
+            (_, Some(r2)) if r2 >= threshold => Miss::TrainingNoise,
+            (Some(t), Some(r2)) if 1.0 - t <= DETERMINED_RATIO * (1.0 - r2) => Miss::NotDetermined,
+            _ => Miss::FitMissesTraining,
+        })
+    }
+
+    /// Why a record misses `threshold`: the first, in [`Miss`]'s order, of its outputs'.
+    pub fn of_record(r: &RecordScore, threshold: f64) -> Option<Miss> {
+        r.outputs
+            .iter()
+            .filter_map(|o| Miss::of_output(o, threshold))
+            .min()
+    }
+}
+
+/// The records of a class below its floor that were fitted again without noise, by
+/// [`Miss`].
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Misses {
+    pub noise_ceiling: usize,
+    pub fit_misses_training: usize,
+    pub not_determined: usize,
+    pub training_noise: usize,
 }
 
 impl OutputScore {
@@ -133,6 +207,9 @@ pub struct ClassSummary {
     /// Outputs whose model is the grey-box base alone, and the base under a network.
     pub base_alone: usize,
     pub base_and_network: usize,
+    /// With `--noiseless-training`: why the records below the floor miss it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub misses: Option<Misses>,
     /// Median of the train - test free-run R^2 gap.
     pub median_gap: Option<f64>,
     pub median_seconds: f64,
@@ -159,8 +236,52 @@ fn clean_r2(clean: &[f64], pred: &[f64], start: usize, diverged: Option<usize>) 
     crate::metrics::r2(&clean[start..], &pred[start..])
 }
 
-/// Scores one member's record.
-fn score_member(dir: &Path, e: &IndexEntry) -> Result<RecordScore, ZooError> {
+/// The identifier fitted on `train` with its outputs replaced by the noiseless ones `truth`
+/// (of the whole record), scored per output on the noiseless training and test halves
+/// (`None` where the fit fails: a noiseless output it cannot be fitted to).
+fn noiseless_training(
+    train: &IoRecord,
+    test: &IoRecord,
+    truth: &[Vec<f64>],
+) -> Vec<NoiselessTraining> {
+    let h = train.len();
+    let mut clean = train.clone();
+    for (s, t) in clean.outputs.iter_mut().zip(truth) {
+        s.values = t[..h].to_vec();
+    }
+    let failed = || {
+        vec![
+            NoiselessTraining {
+                r2_train: None,
+                r2: None,
+            };
+            truth.len()
+        ]
+    };
+    let Ok(model) = NarxConfig::new(clean.input_names(), clean.output_names()).fit(&clean) else {
+        return failed();
+    };
+    let mode = crate::narx::Mode::FreeRun;
+    let (Ok(on_train), Ok(on_test)) = (
+        model.predict_after(None, &clean, mode),
+        model.predict_after(Some(&clean), test, mode),
+    ) else {
+        return failed();
+    };
+    on_train
+        .iter()
+        .zip(&on_test)
+        .zip(truth)
+        .map(|((a, b), t)| NoiselessTraining {
+            r2_train: clean_r2(&t[..h], &a.values, a.start, a.diverged_at),
+            r2: clean_r2(&t[h..], &b.values, b.start, b.diverged_at),
+        })
+        .collect()
+}
+
+/// Scores one member's record (and with `again`, fits it again on its noiseless
+/// training half).
+fn score_member(dir: &Path, e: &IndexEntry, again: bool) -> Result<RecordScore, ZooError> {
     let path = dir.join(&e.record);
     let io = IoRecord::from_record(&read_csv(&path)?, None, None, true)?;
     let (train, test) = io.split_halves();
@@ -184,6 +305,14 @@ fn score_member(dir: &Path, e: &IndexEntry) -> Result<RecordScore, ZooError> {
     let runs = arx.free_run(&test);
     let truth = noiseless(dir, e)?;
     let h = train.len();
+    let mut again = if again {
+        noiseless_training(&train, &test, &truth)
+            .into_iter()
+            .map(Some)
+            .collect()
+    } else {
+        vec![None; truth.len()]
+    };
     let r2 = |p: &crate::narx::OutputPrediction, y: &[f64]| p.scores(y).and_then(|s| s.r2);
     let outputs = (0..test.outputs.len())
         .map(|o| {
@@ -207,6 +336,7 @@ fn score_member(dir: &Path, e: &IndexEntry) -> Result<RecordScore, ZooError> {
                 coverage,
                 band_width,
                 model: model.base.as_ref().map_or(BaseUse::Network, |b| b.uses(o)),
+                noiseless_training: again[o].take(),
             }
         })
         .collect();
@@ -234,16 +364,25 @@ pub enum Schedule {
     OneAtATime,
 }
 
+/// How a zoo is scored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ScoreOptions {
+    pub schedule: Schedule,
+    /// Fit the identifier again on each record's noiseless training half
+    /// ([`NoiselessTraining`], [`Miss`]): twice the time.
+    pub noiseless_training: bool,
+}
+
 /// Scores every record of the zoo in `dir`. `progress` hears each record when it is scored.
 pub fn score(
     dir: &Path,
-    schedule: Schedule,
+    options: ScoreOptions,
     progress: &(dyn Fn(&RecordScore) + Sync),
 ) -> Result<ZooScore, ZooError> {
     let seed = ZooIndex::read(dir)?.seed;
     Ok(ZooScore::of(
         seed,
-        score_members(dir, &|_| true, schedule, progress)?,
+        score_members(dir, &|_| true, options, progress)?,
     ))
 }
 
@@ -258,7 +397,7 @@ pub fn score(
 pub fn score_members(
     dir: &Path,
     take: &(dyn Fn(usize) -> bool + Sync),
-    schedule: Schedule,
+    options: ScoreOptions,
     progress: &(dyn Fn(&RecordScore) + Sync),
 ) -> Result<Vec<RecordScore>, ZooError> {
     let index = ZooIndex::read(dir)?;
@@ -270,13 +409,13 @@ pub fn score_members(
         .map(|(_, e)| e)
         .collect();
     let one = |e: &&IndexEntry| {
-        let r = score_member(dir, e);
+        let r = score_member(dir, e, options.noiseless_training);
         if let Ok(r) = &r {
             progress(r);
         }
         r
     };
-    match schedule {
+    match options.schedule {
         // (stops at the first error)
         Schedule::OneAtATime => members.iter().map(one).collect(),
         Schedule::SideBySide => {
@@ -391,6 +530,22 @@ fn summarise(class: Class, records: &[RecordScore]) -> Option<ClassSummary> {
             .iter()
             .filter(|o| o.model == BaseUse::BaseAndNetwork)
             .count(),
+        misses: mine
+            .iter()
+            .any(|r| r.outputs.iter().any(|o| o.noiseless_training.is_some()))
+            .then(|| {
+                let mut m = Misses::default();
+                for r in &mine {
+                    match Miss::of_record(r, floor) {
+                        Some(Miss::NoiseCeiling) => m.noise_ceiling += 1,
+                        Some(Miss::FitMissesTraining) => m.fit_misses_training += 1,
+                        Some(Miss::NotDetermined) => m.not_determined += 1,
+                        Some(Miss::TrainingNoise) => m.training_noise += 1,
+                        None => {}
+                    }
+                }
+                m
+            }),
         median_gap: median(gaps),
         median_seconds: median(mine.iter().map(|r| r.seconds).collect()).unwrap_or(0.0),
         total_seconds: mine.iter().map(|r| r.seconds).sum(),
@@ -433,13 +588,27 @@ impl ZooScore {
             .collect()
     }
 
-    /// `results.csv`: one row per output of each record.
+    /// Whether some output was fitted again on its noiseless training half.
+    fn noiseless_training(&self) -> bool {
+        self.records
+            .iter()
+            .any(|r| r.outputs.iter().any(|o| o.noiseless_training.is_some()))
+    }
+
+    /// `results.csv`: one row per output of each record (with `--noiseless-training`, two
+    /// columns more: [`NoiselessTraining`]).
     pub fn to_csv(&self) -> String {
-        let mut s = String::from("index,class,samples,sampling_period_s,output,r2_test,diverged,r2_train,arx_r2_test,arx_diverged,worse_than_arx,truth_r2_test,r2_clean,arx_r2_clean,band_coverage,band_width,model,outside_share,seconds\n");
+        let again = self.noiseless_training();
+        let mut s = String::from("index,class,samples,sampling_period_s,output,r2_test,diverged,r2_train,arx_r2_test,arx_diverged,worse_than_arx,truth_r2_test,r2_clean,arx_r2_clean,band_coverage,band_width,model,outside_share,seconds");
+        s += if again {
+            ",noiseless_training_r2_train,noiseless_training_r2_clean\n"
+        } else {
+            "\n"
+        };
         let opt = |v: Option<f64>| v.map_or(String::new(), |x| x.to_string());
         for r in &self.records {
             for o in &r.outputs {
-                let _ = writeln!(
+                let _ = write!(
                     s,
                     "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                     r.index,
@@ -462,6 +631,16 @@ impl ZooScore {
                     r.outside,
                     r.seconds
                 );
+                if again {
+                    let n = o.noiseless_training.as_ref();
+                    let _ = write!(
+                        s,
+                        ",{},{}",
+                        opt(n.and_then(|n| n.r2_train)),
+                        opt(n.and_then(|n| n.r2))
+                    );
+                }
+                s.push('\n');
             }
         }
         s
@@ -535,6 +714,28 @@ impl ZooScore {
                 below,
                 share(c.below_floor_leaving, below),
             );
+        }
+        if self.classes.iter().any(|c| c.misses.is_some()) {
+            let _ = write!(
+                s,
+                "\nWhy the records below the floor miss it (`--noiseless-training`: the identifier fitted again on each record's noiseless training half, scored on the noiseless test half). Per record the first that holds of its outputs below the threshold: the true plant misses too (the noise alone); fitted without noise it still misses the training half (the model family or its fit); it fits the noiseless training half, its error there at most {DETERMINED_RATIO} of the test half's, and misses the test half (the training half does not determine it); it reaches the threshold fitted without noise (the noise in the training half costs it).\n\n| class | below the floor | true plant misses too | misses the noiseless training half | training half does not determine the test half | reaches it fitted without noise |\n|---|---|---|---|---|---|\n"
+            );
+            for c in &self.classes {
+                let Some(m) = &c.misses else {
+                    continue;
+                };
+                let below = c.records - c.records_at_floor;
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} | {} | {} | {} |",
+                    c.class,
+                    below,
+                    share(m.noise_ceiling, below),
+                    share(m.fit_misses_training, below),
+                    share(m.not_determined, below),
+                    share(m.training_noise, below),
+                );
+            }
         }
         s += "\nAgainst the noiseless output (the model's own error, without the measurement noise):\n\n";
         s += "| class | outputs | R^2 5 % | median | >= 0.99 | >= 0.999 | ARX median | ARX >= 0.99 | ARX >= 0.999 |\n|---|---|---|---|---|---|---|---|---|\n";
@@ -611,10 +812,101 @@ mod tests {
                 coverage: None,
                 band_width: None,
                 model: BaseUse::Base,
+                noiseless_training: None,
             }],
             outside,
             seconds: 1.0,
         }
+    }
+
+    /// An output below the threshold of 0.99 with the true plant's R^2 `truth` and, fitted
+    /// again without noise, R^2 `train` on the training half and `test` on the test half.
+    fn missing(truth: f64, train: Option<f64>, test: Option<f64>) -> OutputScore {
+        let mut o = record(0, 0.95, 0.0).outputs.remove(0);
+        o.truth_r2 = Some(truth);
+        o.noiseless_training = Some(NoiselessTraining {
+            r2_train: train,
+            r2: test,
+        });
+        o
+    }
+
+    #[test]
+    fn a_miss_is_told_by_the_noiseless_fit_and_a_record_by_its_first_cause() {
+        let t = 0.99;
+        // (true plant, noiseless fit on the training half, on the test half) -> cause
+        let cases = [
+            // the true plant misses: the noise alone, whatever the fit without it does
+            ((0.98, Some(1.0), Some(1.0)), Miss::NoiseCeiling),
+            // fitted without noise it reaches the threshold
+            ((0.999, Some(0.9999), Some(0.995)), Miss::TrainingNoise),
+            // it fits the training half ten times closer than the test half, misses the test
+            ((0.999, Some(0.9995), Some(0.95)), Miss::NotDetermined),
+            // ... or not (just above a tenth), or its fit failed or diverged
+            ((0.999, Some(0.99499), Some(0.95)), Miss::FitMissesTraining),
+            ((0.999, None, None), Miss::FitMissesTraining),
+        ];
+        for ((truth, train, test), cause) in cases {
+            let o = missing(truth, train, test);
+            assert_eq!(
+                Miss::of_output(&o, t),
+                Some(cause),
+                "{truth} {train:?} {test:?}"
+            );
+        }
+        let of = |o: &OutputScore| Miss::of_output(o, t);
+        // at the threshold, or not fitted again: no cause
+        let mut at = missing(0.999, None, None);
+        at.r2 = Some(0.995);
+        assert_eq!(of(&at), None);
+        let mut unasked = missing(0.98, None, None);
+        unasked.noiseless_training = None;
+        assert_eq!(of(&unasked), None);
+        // a record: the first cause in the order of [`Miss`]; the report counts records
+        let mut r = record(1, 0.95, 0.0);
+        r.outputs = vec![
+            missing(0.999, Some(0.9999), Some(0.995)),
+            missing(0.999, Some(0.9995), Some(0.95)),
+        ];
+        assert_eq!(Miss::of_record(&r, t), Some(Miss::NotDetermined));
+        let mut noise = record(2, 0.95, 0.0);
+        noise.outputs = vec![missing(0.999, Some(0.9999), Some(0.995))];
+        let mut reached = record(3, 0.995, 0.0);
+        reached.outputs[0].noiseless_training = Some(NoiselessTraining {
+            r2_train: Some(1.0),
+            r2: Some(1.0),
+        });
+        let score = ZooScore::of(1, vec![r, noise, reached]);
+        let c = &score.classes[0];
+        assert_eq!(
+            c.misses,
+            Some(Misses {
+                noise_ceiling: 0,
+                fit_misses_training: 0,
+                not_determined: 1,
+                training_noise: 1,
+            })
+        );
+        let report = score.to_markdown();
+        assert!(
+            report.contains("| 1dof-short | 2 | 0 (0 %) | 0 (0 %) | 1 (50 %) | 1 (50 %) |"),
+            "{report}"
+        );
+        let csv = score.to_csv();
+        assert!(csv
+            .lines()
+            .next()
+            .unwrap()
+            .ends_with(",seconds,noiseless_training_r2_train,noiseless_training_r2_clean"));
+        assert!(
+            csv.lines().nth(1).unwrap().ends_with(",0.9999,0.995"),
+            "{csv}"
+        );
+        // without the option: neither the table nor the columns
+        let plain = ZooScore::of(1, vec![record(4, 0.95, 0.0)]);
+        assert!(plain.classes[0].misses.is_none());
+        assert!(!plain.to_markdown().contains("fitted without noise"));
+        assert!(plain.to_csv().lines().next().unwrap().ends_with(",seconds"));
     }
 
     #[test]
