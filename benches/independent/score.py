@@ -98,6 +98,10 @@ def noiseless_record(rec, truth, path):
             w.writerow([repr(float(v)) for v in row])
 
 
+# how much closer than its test half a noiseless fit must fit its training half for "does not
+# determine" (`zoo::score::DETERMINED_RATIO`)
+DETERMINED_RATIO = 0.1
+
 # (the precedence of a record's outputs, as `zoo score --noiseless-training`)
 MISSES = ["true plant misses too", "misses the noiseless training half",
           "training half does not determine the test half", "reaches it fitted without noise"]
@@ -112,7 +116,7 @@ def miss(o, floor):
     train, test = o["noiseless_r2_train"], o["noiseless_r2"]
     if test is not None and test >= floor:
         return 3
-    if train is not None and test is not None and 1 - train <= 0.1 * (1 - test):
+    if train is not None and test is not None and 1 - train <= DETERMINED_RATIO * (1 - test):
         return 2
     return 1
 

@@ -149,6 +149,13 @@ pub struct RecordScore {
     pub seconds: f64,
 }
 
+impl RecordScore {
+    /// Whether some output was fitted again on its noiseless training half.
+    fn fitted_without_noise(&self) -> bool {
+        self.outputs.iter().any(|o| o.noiseless_training.is_some())
+    }
+}
+
 /// The distribution of one score over a class.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Distribution {
@@ -279,9 +286,9 @@ fn noiseless_training(
         .collect()
 }
 
-/// Scores one member's record (and with `again`, fits it again on its noiseless
+/// Scores one member's record (and with `with_noiseless`, fits it again on its noiseless
 /// training half).
-fn score_member(dir: &Path, e: &IndexEntry, again: bool) -> Result<RecordScore, ZooError> {
+fn score_member(dir: &Path, e: &IndexEntry, with_noiseless: bool) -> Result<RecordScore, ZooError> {
     let path = dir.join(&e.record);
     let io = IoRecord::from_record(&read_csv(&path)?, None, None, true)?;
     let (train, test) = io.split_halves();
@@ -305,7 +312,7 @@ fn score_member(dir: &Path, e: &IndexEntry, again: bool) -> Result<RecordScore, 
     let runs = arx.free_run(&test);
     let truth = noiseless(dir, e)?;
     let h = train.len();
-    let mut again = if again {
+    let mut again = if with_noiseless {
         noiseless_training(&train, &test, &truth)
             .into_iter()
             .map(Some)
@@ -530,22 +537,19 @@ fn summarise(class: Class, records: &[RecordScore]) -> Option<ClassSummary> {
             .iter()
             .filter(|o| o.model == BaseUse::BaseAndNetwork)
             .count(),
-        misses: mine
-            .iter()
-            .any(|r| r.outputs.iter().any(|o| o.noiseless_training.is_some()))
-            .then(|| {
-                let mut m = Misses::default();
-                for r in &mine {
-                    match Miss::of_record(r, floor) {
-                        Some(Miss::NoiseCeiling) => m.noise_ceiling += 1,
-                        Some(Miss::FitMissesTraining) => m.fit_misses_training += 1,
-                        Some(Miss::NotDetermined) => m.not_determined += 1,
-                        Some(Miss::TrainingNoise) => m.training_noise += 1,
-                        None => {}
-                    }
+        misses: mine.iter().any(|r| r.fitted_without_noise()).then(|| {
+            let mut m = Misses::default();
+            for r in &mine {
+                match Miss::of_record(r, floor) {
+                    Some(Miss::NoiseCeiling) => m.noise_ceiling += 1,
+                    Some(Miss::FitMissesTraining) => m.fit_misses_training += 1,
+                    Some(Miss::NotDetermined) => m.not_determined += 1,
+                    Some(Miss::TrainingNoise) => m.training_noise += 1,
+                    None => {}
                 }
-                m
-            }),
+            }
+            m
+        }),
         median_gap: median(gaps),
         median_seconds: median(mine.iter().map(|r| r.seconds).collect()).unwrap_or(0.0),
         total_seconds: mine.iter().map(|r| r.seconds).sum(),
@@ -588,17 +592,10 @@ impl ZooScore {
             .collect()
     }
 
-    /// Whether some output was fitted again on its noiseless training half.
-    fn noiseless_training(&self) -> bool {
-        self.records
-            .iter()
-            .any(|r| r.outputs.iter().any(|o| o.noiseless_training.is_some()))
-    }
-
     /// `results.csv`: one row per output of each record (with `--noiseless-training`, two
     /// columns more: [`NoiselessTraining`]).
     pub fn to_csv(&self) -> String {
-        let again = self.noiseless_training();
+        let again = self.records.iter().any(RecordScore::fitted_without_noise);
         let mut s = String::from("index,class,samples,sampling_period_s,output,r2_test,diverged,r2_train,arx_r2_test,arx_diverged,worse_than_arx,truth_r2_test,r2_clean,arx_r2_clean,band_coverage,band_width,model,outside_share,seconds");
         s += if again {
             ",noiseless_training_r2_train,noiseless_training_r2_clean\n"
