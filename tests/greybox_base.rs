@@ -166,6 +166,25 @@ fn a_2dof_record_with_new_input_combinations_in_its_test_half_is_identified() {
     let y = &test.outputs[o].values;
     let r2 = hystbench::metrics::scores(y, &w[o].values).r2.unwrap();
     assert!(r2 >= 0.95, "the committee's free-run test R^2 {r2}");
+    // a committee whose members part (shifted by +-10 standard deviations in turn) widens the
+    // band to its spread: the fits the record supports disagree there
+    let mut parted = m.clone();
+    for (k, a) in parted.base.as_mut().unwrap().outputs[o]
+        .alternatives
+        .iter_mut()
+        .enumerate()
+    {
+        a.output.offset += if k % 2 == 0 { 10.0 } else { -10.0 } * std;
+    }
+    let wide = parted
+        .predict_after(Some(&train), &test, Mode::FreeRun)
+        .unwrap();
+    let (narrow, wide) = (
+        p[o].half_width.as_ref().expect("a band"),
+        wide[o].half_width.as_ref().expect("a band"),
+    );
+    assert!(narrow.iter().all(|&h| h < std), "{narrow:?}");
+    assert!(wide.iter().all(|&h| h > 5.0 * std), "{wide:?}");
     // a damaged base is refused with its name
     let mut v: serde_json::Value = serde_json::from_str(&m.to_json()).unwrap();
     v["model"]["base"]["plant"]["outputs"][0]["dynamics"] =

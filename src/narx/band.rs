@@ -12,6 +12,11 @@
 //! record, of its cross-validated residuals; on a record with no validation part at all, of the
 //! in-sample residuals).
 //!
+//! On a short record's output that its grey-box base's committee predicts
+//! ([`super::consensus`]), the second opinion's disagreement is the larger of the network's and
+//! the committee's own spread ([`super::consensus::committee_spread`]), at prediction only: the
+//! band widens where the fits the record supports part.
+//!
 //! The validation part comes after the fitting part in time, so the band carries the model's
 //! drift as well as the noise; its free-run residuals are correlated, so the coverage is a
 //! measured property (see `hystbench zoo score`), not a guarantee.

@@ -38,7 +38,7 @@
 
 use super::band::{Band, BAND_LEVEL};
 use super::config::{NarxConfig, Protocol};
-use super::consensus::{committee_median, departure, Alternative, Departure};
+use super::consensus::{committee_median, committee_spread, departure, Alternative, Departure};
 use super::fit::PROBE_TAIL;
 use super::model::{FittedNarx, Mode, OutputModel};
 use super::NarxError;
@@ -433,9 +433,10 @@ impl GreyBoxBase {
     }
 
     /// The prediction of output `o` over `rec` (after `history`), whose base ran `chosen`:
-    /// the pointwise median of `chosen` and its committee's runs ([`super::consensus`]), and
-    /// the departure of `chosen` from it when it passes [`super::consensus::CONSENSUS_DEPARTURE`]
-    /// standard deviations `std` (the training output's). Without a committee, `chosen`.
+    /// the pointwise median of `chosen` and its committee's runs ([`super::consensus`]), their
+    /// spread at each sample ([`committee_spread`]), and the departure of `chosen` from the
+    /// median when it passes [`super::consensus::CONSENSUS_DEPARTURE`] standard deviations
+    /// `std` (the training output's). Without a committee, `chosen` and no spread.
     pub fn committee(
         &self,
         o: usize,
@@ -443,10 +444,14 @@ impl GreyBoxBase {
         std: f64,
         history: Option<&IoRecord>,
         rec: &IoRecord,
-    ) -> Result<(Vec<f64>, Option<Departure>), NarxError> {
+    ) -> Result<CommitteeRun, NarxError> {
         let with_committee = |c: &&BaseChoice| self.plant.is_some() && !c.alternatives.is_empty();
         let Some(choice) = self.outputs.get(o).filter(with_committee) else {
-            return Ok((chosen.to_vec(), None));
+            return Ok(CommitteeRun {
+                median: chosen.to_vec(),
+                spread: vec![0.0; chosen.len()],
+                departure: None,
+            });
         };
         let runs: Vec<Option<Vec<f64>>> = self
             .committee_plants(o, &rec.path)?
@@ -458,6 +463,7 @@ impl GreyBoxBase {
             .chain(runs.iter().map(Option::as_deref))
             .collect();
         let median = committee_median(&all);
+        let spread = committee_spread(&all);
         let d = departure(chosen, &median, std);
         if std::env::var_os("HYSTBENCH_TRACE").is_some() {
             eprintln!(
@@ -467,14 +473,28 @@ impl GreyBoxBase {
                 runs.len()
             );
         }
-        let reported = d
+        let departure = d
             .filter(|&d| d > super::consensus::CONSENSUS_DEPARTURE)
             .map(|departure| Departure {
                 chosen: choice.effects.clone(),
                 departure,
             });
-        Ok((median, reported))
+        Ok(CommitteeRun {
+            median,
+            spread,
+            departure,
+        })
     }
+}
+
+/// An output's committee over a record ([`GreyBoxBase::committee`]).
+pub struct CommitteeRun {
+    /// The pointwise median, which predicts.
+    pub median: Vec<f64>,
+    /// The members' spread at each sample (zeros without a committee).
+    pub spread: Vec<f64>,
+    /// The chosen base's departure from the median, when reported.
+    pub departure: Option<Departure>,
 }
 
 /// One output's run of a base over a record: its values, or the sample at which it left the

@@ -113,12 +113,7 @@ pub fn committee_median(runs: &[Option<&[f64]>]) -> Vec<f64> {
         return Vec::new();
     };
     let n = first.len();
-    let members: Vec<&[f64]> = runs
-        .iter()
-        .flatten()
-        .copied()
-        .filter(|r| r.len() == n && r.iter().all(|v| v.is_finite()))
-        .collect();
+    let members = comparable(runs);
     if members.is_empty() {
         return first.to_vec();
     }
@@ -131,6 +126,26 @@ pub fn committee_median(runs: &[Option<&[f64]>]) -> Vec<f64> {
             median(&mut column)
         })
         .collect()
+}
+
+/// The runs that are present, of the length of the first and finite: the members that vote.
+fn comparable<'a>(runs: &[Option<&'a [f64]>]) -> Vec<&'a [f64]> {
+    let n = runs.first().copied().flatten().map_or(0, <[f64]>::len);
+    runs.iter()
+        .flatten()
+        .copied()
+        .filter(|r| r.len() == n && r.iter().all(|v| v.is_finite()))
+        .collect()
+}
+
+/// The committee's spread at each sample of the first run (the chosen base's): the members'
+/// scaled median absolute deviation ([`super::band::spread`]) over the runs that vote in
+/// [`committee_median`]; zeros with fewer than two. Where the fits the record supports part,
+/// the prediction's band widens with it (`FittedNarx::predict`): they part where the record
+/// did not decide the output (query by committee).
+pub fn committee_spread(runs: &[Option<&[f64]>]) -> Vec<f64> {
+    let n = runs.first().copied().flatten().map_or(0, <[f64]>::len);
+    super::band::spread(&comparable(runs), n)
 }
 
 /// The median of `v` (sorted in place; the mean of the middle two of an even count), as
@@ -187,6 +202,32 @@ mod tests {
         // an even count: the middle two's mean
         let m = committee_median(&[Some(&b[..]), Some(&c[..])]);
         assert!(m.iter().zip(&a).all(|(x, y)| (x - y).abs() < 1e-12));
+    }
+
+    /// The spread is zero where the members agree and grows where they part; the runs the
+    /// median leaves out (another length, not finite) take no part in it either.
+    #[test]
+    fn the_committee_spreads_where_its_members_part() {
+        let a = [1.0, 2.0, 3.0];
+        let b = [1.0, 2.5, 3.0];
+        let c = [1.0, 1.5, 3.0];
+        let nan = [f64::NAN, 9.0, 9.0];
+        let short = [5.0];
+        let s = committee_spread(&[Some(&a[..]), Some(&b[..]), Some(&c[..]), Some(&nan[..])]);
+        assert_eq!(s.len(), 3);
+        assert_eq!((s[0], s[2]), (0.0, 0.0));
+        // the members' median absolute deviation (0.5) scaled to a standard deviation
+        assert!((s[1] - 1.4826 * 0.5).abs() < 1e-12, "{s:?}");
+        let with_short =
+            committee_spread(&[Some(&a[..]), Some(&b[..]), Some(&c[..]), Some(&short[..])]);
+        assert_eq!(with_short, s);
+        // a base alone, or with nothing comparable, does not spread
+        assert_eq!(committee_spread(&[Some(&a[..]), None]), vec![0.0; 3]);
+        assert_eq!(
+            committee_spread(&[Some(&a[..]), Some(&short[..])]),
+            vec![0.0; 3]
+        );
+        assert!(committee_spread(&[None]).is_empty());
     }
 
     #[test]

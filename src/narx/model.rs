@@ -450,11 +450,13 @@ impl FittedNarx {
                     // departs from it
                     let std = self.outputs[o].scaling.std;
                     let band = self.outputs[o].band.as_ref();
-                    let (median, departure) = base.committee(o, &g[o], std, history, rec)?;
-                    g[o] = median;
-                    p.base_departure = departure;
+                    let committee = base.committee(o, &g[o], std, history, rec)?;
+                    g[o] = committee.median;
+                    p.base_departure = committee.departure;
                     // the output's network ran on the measured output: its free run is the
-                    // second opinion whose disagreement with the base widens the band
+                    // second opinion whose disagreement with the base widens the band, and so
+                    // does the committee's own spread where it is the larger (the fits the
+                    // record supports part where it did not decide the output)
                     let net = std::mem::replace(&mut p.values, g[o].clone());
                     let net = if p.diverged_at.is_some() {
                         &[][..]
@@ -467,7 +469,8 @@ impl FittedNarx {
                         (Mode::FreeRun, Some(b)) => Some(
                             (0..g[o].len())
                                 .map(|k| {
-                                    b.half_width(net.get(k).map_or(0.0, |a| (g[o][k] - a).abs()))
+                                    let second = net.get(k).map_or(0.0, |a| (g[o][k] - a).abs());
+                                    b.half_width(second.max(committee.spread[k]))
                                 })
                                 .collect(),
                         ),
