@@ -473,3 +473,34 @@ fn a_staircase_whose_first_loop_comes_late_keeps_a_hysteresis_base() {
     );
     assert!(r2[0] >= 0.999, "free-run test R^2 {}", r2[0]);
 }
+
+/// An output on the network in a model whose grey-box base another output uses keeps the base's
+/// own band: where the network's members leave their range on the test half and the base
+/// stands in, the prediction still carries a band. The record (`tests/data/README.md`) is one
+/// of the independent generator's whose y1 the network wins on the training record's tail
+/// (every base list misses the training half's staircase, which never reverses) and leaves its
+/// range on the test half's new levels.
+#[test]
+fn an_output_on_the_network_keeps_the_base_band_for_where_the_base_stands_in() {
+    let path = common::root().join("tests/data/independent_40_0014.csv");
+    let csv = hystbench::data::read_csv(&path).unwrap();
+    let rec = IoRecord::from_record(&csv, None, None, true).unwrap();
+    let (m, test, _) = identify_first_half(&rec);
+    let base = m.base.as_ref().expect("the grey-box base was tried");
+    assert_eq!(base.uses(0), BaseUse::Network, "{:?}", base.outputs[0]);
+    assert!(base.active(), "y2 on the base: {:?}", base.outputs[1]);
+    let band = base.outputs[0]
+        .base_band
+        .clone()
+        .expect("the base's band on y1");
+    let p = m.predict(&test, Mode::FreeRun).unwrap();
+    // the network's members leave their range: the base stands in, with its own band
+    assert!(
+        !p[0].diverged_members.is_empty(),
+        "{:?}",
+        p[0].diverged_members
+    );
+    let half = p[0].half_width.as_ref().expect("a band");
+    assert_eq!(half.len(), p[0].values.len());
+    assert!(half.iter().all(|&h| h == band.half_width(0.0) && h > 0.0));
+}

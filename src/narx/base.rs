@@ -341,7 +341,8 @@ pub struct BaseChoice {
     pub model: BaseUse,
     /// On a base-and-network output, the grey-box alone's band (calibrated on its held-out
     /// residuals): the band where the residual network leaves its range and the grey-box alone
-    /// predicts.
+    /// predicts; on an output on the network, the grey-box's band where the network leaves its
+    /// range and the base stands in.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base_band: Option<Band>,
     /// On a base-and-network output, the output's network trained on the measured output:
@@ -1236,6 +1237,15 @@ impl NarxConfig {
             };
             refit_on_training(train, chosen_fits, &choices, &mut refitted)
         };
+        // an output on the network keeps the grey-box's own band (its held-out residuals),
+        // for where the network leaves its range and the base stands in (`FittedNarx::predict`)
+        let used = choices.iter().any(|c| c.model != BaseUse::Network);
+        for (o, choice) in choices.iter_mut().enumerate() {
+            if used && choice.model == BaseUse::Network && choice.base_band.is_none() {
+                choice.base_band =
+                    base_band(&train.outputs[o].values, &sim[o], &None, n_fit, short);
+            }
+        }
         // one plant: each output's chain from the candidate it chose
         let mut plant = models[picks[0]].plant.spec.clone();
         for (o, out) in plant.outputs.iter_mut().enumerate() {
@@ -1244,7 +1254,6 @@ impl NarxConfig {
                 .unwrap_or_else(|| models[picks[o]].plant.spec.outputs[o].clone());
         }
         // (contested outputs whose residual network lost leave the base unused)
-        let used = choices.iter().any(|c| c.model != BaseUse::Network);
         m.base = Some(GreyBoxBase {
             effects,
             fitted_samples,
