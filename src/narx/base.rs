@@ -341,8 +341,9 @@ pub struct BaseChoice {
     pub model: BaseUse,
     /// On a base-and-network output, the grey-box alone's band (calibrated on its held-out
     /// residuals): the band where the residual network leaves its range and the grey-box alone
-    /// predicts; on an output on the network, the grey-box's band where the network leaves its
-    /// range and the base stands in.
+    /// predicts (no floor); on an output on the network in a model whose base another output
+    /// uses, the grey-box's band ([`base_band`], with its floor) where the network leaves its
+    /// range and the base stands in (`None` when no output uses the base).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base_band: Option<Band>,
     /// On a base-and-network output, the output's network trained on the measured output:
@@ -899,8 +900,9 @@ fn preference(errs: &[Option<Vec<f64>>], challengers: &[bool], first: usize) -> 
     order
 }
 
-/// The band of an output on the grey-box alone, from its free run `sim` over the training
-/// record `y`: calibrated on the held-out samples `n_fit..` by its residuals there, normalised
+/// The band of an output on the grey-box alone (or of the base that stands in for an output
+/// on the network, `network` then `None`), from its free run `sim` over the training record
+/// `y`: calibrated on the held-out samples `n_fit..` by its residuals there, normalised
 /// by its disagreement with the network's free run `network` (wider where the two part, as
 /// outside the training region; `Band` with the spread |g - network|); never narrower than
 /// its held-out errors, on a short record its cross-validated errors over every block
