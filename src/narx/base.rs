@@ -342,8 +342,8 @@ pub struct BaseChoice {
     /// On a base-and-network output, the grey-box alone's band (calibrated on its held-out
     /// residuals): the band where the residual network leaves its range and the grey-box alone
     /// predicts (no floor); on an output on the network in a model whose base another output
-    /// uses, the grey-box's band (the `base_band` function's, with its floor) where the network leaves its
-    /// range and the base stands in (`None` when no output uses the base).
+    /// uses, the grey-box's band (the `base_band` function's, with its floor) where the
+    /// network leaves its range and the base stands in (`None` when no output uses the base).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base_band: Option<Band>,
     /// On a base-and-network output, the output's network trained on the measured output:
