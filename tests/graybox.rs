@@ -707,3 +707,51 @@ fn the_output_map_goes_on_with_its_gentlest_slope_beyond_the_training_range() {
         }
     }
 }
+
+/// `log-creep` goes on creeping after the record as the logarithmic law does, where the
+/// default chain stops after its longest time constant: a plant whose creep follows the law
+/// over six decades (2 % per decade, 0.01-1000 s), fitted on 12 s of held steps, then asked
+/// for a step held 200 s.
+#[test]
+fn log_creep_goes_on_creeping_after_the_record() {
+    let truth = plant_edited("creep_piezo.json", |s| {
+        let o = &mut s.outputs[0];
+        o.set(CreepSpec::from_log_rate(
+            2.0,
+            vec![0.01, 0.1, 1.0, 10.0, 100.0, 1000.0],
+        ));
+        o.remove(hystbench::effect::dynamics::NAME);
+    });
+    let rec = record(
+        &truth,
+        r#"{"name": "steps", "sampling_period_s": 0.002, "samples": 6000, "noise_std": 0.0,
+            "seed": 3, "inputs": [{"staircase": {"levels": [20.0, -15.0, 30.0, 5.0, -25.0, 10.0],
+            "hold_s": 2.0}}]}"#,
+    );
+    let hold = record(
+        &truth,
+        r#"{"name": "hold", "sampling_period_s": 0.002, "samples": 100000, "noise_std": 0.0,
+            "seed": 3, "inputs": [{"staircase": {"levels": [25.0], "hold_s": 200.0}}]}"#,
+    );
+    let y = &hold.outputs[0].values;
+    // the creep between 2 s and 200 s after the step, truth and fits
+    let (early, late) = (1000, y.len() - 1);
+    let drift = |v: &[f64]| v[late] - v[early];
+    let want = drift(y);
+    let mut errors = Vec::new();
+    for list in ["bouc-wen,creep", "bouc-wen,log-creep"] {
+        let m = fit(&rec, list);
+        assert!(m.fit.r2.unwrap() > 0.9999, "{list}: R^2 {:?}", m.fit.r2);
+        // the variant is written to the model file and read back
+        let back = FittedGreyBox::parse(Path::new("m.json"), &m.to_json().unwrap()).unwrap();
+        assert_eq!(back.config().effect_list(), list);
+        let got = drift(&back.simulate(&hold).unwrap()[0]);
+        eprintln!("{list}: drift 2-200 s {got:.4} against {want:.4}");
+        errors.push((got - want).abs());
+    }
+    assert!(want > 0.0);
+    assert!(
+        errors[1] < errors[0] / 3.0 && errors[1] < 0.25 * want,
+        "drift errors {errors:?} of {want}"
+    );
+}

@@ -16,7 +16,9 @@
 use super::basis::{BasisBank, BasisContext, EvidenceContext, Signal};
 use super::draw::{Dice, DrawContext};
 use super::feature::{FeatureKind, FeatureSpec};
-use super::fitting::{FilterFit, FilterState, OutputSetup, Prepared, RecordError, RecordView};
+use super::fitting::{
+    FilterFit, FilterState, OutputSetup, Prepared, RecordError, RecordView, Variant,
+};
 use super::spec::{parse_spec, BoxedOperator, EffectSpec, Params, Spec};
 use super::{finite, positive, Effect, EffectError, EffectName, Operator, Slot};
 use serde::{Deserialize, Serialize};
@@ -331,7 +333,26 @@ pub fn creep_drift(u: &[f64], e: &[f64], ts: f64) -> Option<(f64, usize)> {
 /// in the first stage so that the fast dynamics settle first).
 struct CreepFilter {
     taus: Vec<f64>,
+    /// Time constants beyond the record that share the last fitted gain (the logarithmic
+    /// law continued).
+    tail: Vec<f64>,
     ts: f64,
+}
+
+impl CreepFilter {
+    /// Every time constant: the fitted ones, then the tail.
+    fn all_taus(&self) -> Vec<f64> {
+        self.taus.iter().chain(&self.tail).copied().collect()
+    }
+    /// The gains of [`CreepFilter::all_taus`]: the parameters, then the last one again for
+    /// each time constant of the tail.
+    fn all_gains(&self, th: &[f64]) -> Vec<f64> {
+        let last = th.last().copied().unwrap_or(0.0);
+        th.iter()
+            .copied()
+            .chain(std::iter::repeat_n(last, self.tail.len()))
+            .collect()
+    }
 }
 
 impl FilterFit for CreepFilter {
@@ -348,8 +369,12 @@ impl FilterFit for CreepFilter {
         if th.iter().all(|g| *g == 0.0) {
             return Prepared::Identity;
         }
-        let a: Vec<f64> = self.taus.iter().map(|t| (-self.ts / t).exp()).collect();
-        let g = th.to_vec();
+        let a: Vec<f64> = self
+            .all_taus()
+            .iter()
+            .map(|t| (-self.ts / t).exp())
+            .collect();
+        let g = self.all_gains(th);
         Prepared::Apply(Box::new(
             move |cols: &mut [&mut [f64]], states: &mut [FilterState]| {
                 debug_assert_eq!(cols.len(), states.len(), "a state per signal");
@@ -385,9 +410,17 @@ impl FilterFit for CreepFilter {
         ))
     }
     fn derivative(&self, _th: &[f64], x: &[f64], q: usize) -> Vec<f64> {
+        // the last gain also drives the tail
+        let taus: Vec<f64> = if q + 1 == self.taus.len() {
+            std::iter::once(self.taus[q])
+                .chain(self.tail.iter().copied())
+                .collect()
+        } else {
+            vec![self.taus[q]]
+        };
         let one = Creep {
-            time_constants_s: vec![self.taus[q]],
-            gains: vec![1.0],
+            gains: vec![1.0; taus.len()],
+            time_constants_s: taus,
         };
         one.operator(self.ts)
             .apply(x)
@@ -398,8 +431,8 @@ impl FilterFit for CreepFilter {
     }
     fn spec(&self, th: &[f64]) -> Box<dyn EffectSpec> {
         Box::new(CreepSpec {
-            time_constants_s: self.taus.clone(),
-            gains: Some(th.to_vec()),
+            time_constants_s: self.all_taus(),
+            gains: Some(self.all_gains(th)),
             percent_per_decade: None,
         })
     }
@@ -440,6 +473,30 @@ fn kelvin_voigt4(a: &[f64], g: &[f64], cols: [&mut [f64]; 4], z: &mut [[f64; 4]]
         [c0[k], c1[k], c2[k], c3[k]] = o;
     }
 }
+
+/// The decades of time constants beyond the fitted ones that the `log-creep` variant adds,
+/// each with the last fitted gain.
+pub const LOG_TAIL_DECADES: i32 = 2;
+
+/// The grey-box variants: the Kelvin-Voigt chain over the decades the record spans, its gains
+/// free (the default), or the same chain continued by [`LOG_TAIL_DECADES`] decades beyond
+/// the record that share its last gain (`log-creep`): a creep that goes on by the same amount
+/// per decade of time after the record ends, the logarithmic law of piezo creep (Physik
+/// Instrumente's piezo tutorial; Jung & Gweon, Rev. Sci. Instrum. 71(4):1896-1900, 2000),
+/// where the default chain stops creeping after its longest time constant. Which of the two
+/// a record holds only a validation part after the fitting part in time can tell.
+pub const VARIANTS: [Variant; 2] = [
+    Variant {
+        name: "creep",
+        file: "kelvin-voigt",
+        warm_start: None,
+    },
+    Variant {
+        name: "log-creep",
+        file: "logarithmic",
+        warm_start: Some(0),
+    },
+];
 
 /// Creep as an effect of the library.
 pub struct CreepEffect;
@@ -527,9 +584,23 @@ impl Effect for CreepEffect {
     fn no_features(&self) -> &'static str {
         "the record is too short for creep time constants of 20 samples or more"
     }
+    fn variants(&self) -> &'static [Variant] {
+        &VARIANTS
+    }
     fn filter(&self, setup: &OutputSetup) -> Option<Box<dyn FilterFit>> {
         let taus = creep_time_constants(setup.samples, setup.ts, setup.parsimonious).ok()?;
-        Some(Box::new(CreepFilter { taus, ts: setup.ts }))
+        let last = taus[taus.len() - 1];
+        let tail = match setup.variant {
+            1 => (1..=LOG_TAIL_DECADES)
+                .map(|k| last * 10f64.powi(k))
+                .collect(),
+            _ => Vec::new(),
+        };
+        Some(Box::new(CreepFilter {
+            taus,
+            tail,
+            ts: setup.ts,
+        }))
     }
     fn check_record(&self, rec: &RecordView, _variant: usize) -> Result<(), RecordError> {
         let (n, ts) = (rec.samples, rec.ts);
@@ -570,6 +641,7 @@ mod tests {
     fn four_signals_side_by_side_are_four_signals_alone() {
         let f = CreepFilter {
             taus: vec![0.05, 1.0, 30.0],
+            tail: vec![300.0],
             ts: 1e-3,
         };
         let Prepared::Apply(apply) = f.prepare(&[0.02, -0.01, 0.05]) else {
@@ -594,6 +666,51 @@ mod tests {
             let same = alone.iter().zip(t).all(|(a, b)| a.to_bits() == b.to_bits());
             assert!(same, "signal {j} differs side by side");
         }
+    }
+
+    /// The tail's time constants carry the last fitted gain: in the spec, in the filter, and
+    /// in the last parameter's derivative (the filter is linear in its gains, so a central
+    /// difference is exact to rounding).
+    #[test]
+    fn the_tail_carries_the_last_gain() {
+        let f = CreepFilter {
+            taus: vec![0.01, 0.1],
+            tail: vec![1.0, 10.0],
+            ts: 1e-3,
+        };
+        let th = [0.03, 0.02];
+        let spec = format!("{:?}", f.spec(&th));
+        assert!(spec.contains("[0.01, 0.1, 1.0, 10.0]"), "{spec}");
+        assert!(spec.contains("[0.03, 0.02, 0.02, 0.02]"), "{spec}");
+        let x: Vec<f64> = (0..3000).map(|i| (i as f64 * 0.004).sin()).collect();
+        let run = |th: &[f64]| {
+            let Prepared::Apply(apply) = f.prepare(th) else {
+                panic!("creep with gains is a filter");
+            };
+            let mut y = x.clone();
+            apply(&mut [y.as_mut_slice()], &mut [FilterState::new()]);
+            y
+        };
+        let h = 1e-3;
+        let (up, down) = (run(&[0.03, 0.02 + h]), run(&[0.03, 0.02 - h]));
+        let d = f.derivative(&th, &x, 1);
+        for k in 0..x.len() {
+            let fd = (up[k] - down[k]) / (2.0 * h);
+            assert!((fd - d[k]).abs() < 1e-9, "sample {k}: {fd} vs {}", d[k]);
+        }
+        // the tail moves the output: without it the last gain's derivative is smaller late on
+        let alone = CreepFilter {
+            taus: f.taus.clone(),
+            tail: Vec::new(),
+            ts: f.ts,
+        }
+        .derivative(&th, &x, 1);
+        assert!(
+            (d[2999] - alone[2999]).abs() > 1e-3,
+            "{} {}",
+            d[2999],
+            alone[2999]
+        );
     }
 
     #[test]
