@@ -478,13 +478,18 @@ fn kelvin_voigt4(a: &[f64], g: &[f64], cols: [&mut [f64]; 4], z: &mut [[f64; 4]]
 /// each with the last fitted gain.
 pub const LOG_TAIL_DECADES: i32 = 2;
 
+/// The index of the `log-creep` variant in [`VARIANTS`].
+const LOG_CREEP: usize = 1;
+
 /// The grey-box variants: the Kelvin-Voigt chain over the decades the record spans, its gains
 /// free (the default), or the same chain continued by [`LOG_TAIL_DECADES`] decades beyond
 /// the record that share its last gain (`log-creep`): a creep that goes on by the same amount
 /// per decade of time after the record ends, the logarithmic law of piezo creep (Physik
 /// Instrumente's piezo tutorial; Jung & Gweon, Rev. Sci. Instrum. 71(4):1896-1900, 2000),
 /// where the default chain stops creeping after its longest time constant. Which of the two
-/// a record holds only a validation part after the fitting part in time can tell.
+/// a record holds only a validation part after the fitting part in time can tell. The
+/// variant needs two fitted time constants at least: a chain of one has no rate per decade
+/// to go on with (its gain holds all the creep up to its time constant).
 pub const VARIANTS: [Variant; 2] = [
     Variant {
         name: "creep",
@@ -494,7 +499,7 @@ pub const VARIANTS: [Variant; 2] = [
     Variant {
         name: "log-creep",
         file: "logarithmic",
-        warm_start: Some(0),
+        warm_start: None,
     },
 ];
 
@@ -590,11 +595,12 @@ impl Effect for CreepEffect {
     fn filter(&self, setup: &OutputSetup) -> Option<Box<dyn FilterFit>> {
         let taus = creep_time_constants(setup.samples, setup.ts, setup.parsimonious).ok()?;
         let last = taus[taus.len() - 1];
-        let tail = match setup.variant {
-            1 => (1..=LOG_TAIL_DECADES)
+        let tail = if setup.variant == LOG_CREEP && taus.len() >= 2 {
+            (1..=LOG_TAIL_DECADES)
                 .map(|k| last * 10f64.powi(k))
-                .collect(),
-            _ => Vec::new(),
+                .collect()
+        } else {
+            Vec::new()
         };
         Some(Box::new(CreepFilter {
             taus,
@@ -602,8 +608,23 @@ impl Effect for CreepEffect {
             ts: setup.ts,
         }))
     }
-    fn check_record(&self, rec: &RecordView, _variant: usize) -> Result<(), RecordError> {
+    fn check_record(&self, rec: &RecordView, variant: usize) -> Result<(), RecordError> {
         let (n, ts) = (rec.samples, rec.ts);
+        if variant == LOG_CREEP {
+            // two time constants at least: from about 5 samples to a decade above
+            let k_min = (5.0 * ts).log10().ceil();
+            let needed = (3.0 * 10f64.powf(k_min + 1.0 - 0.3) / ts).ceil() as usize;
+            if creep_time_constants(n, ts, rec.parsimonious).map_or(true, |t| t.len() < 2) {
+                return Err(RecordError::TooShort {
+                    needed,
+                    why: format!(
+                        "log-creep goes on at the rate per decade of its last two time constants, which need a record of {:.3e} s or more (two powers of ten from 5 samples, {:.3e} s, within a third of it)",
+                        needed as f64 * ts,
+                        5.0 * ts
+                    ),
+                });
+            }
+        }
         let taus =
             creep_time_constants(n, ts, rec.parsimonious).map_err(|needed| RecordError::TooShort {
                 needed,
@@ -666,6 +687,53 @@ mod tests {
             let same = alone.iter().zip(t).all(|(a, b)| a.to_bits() == b.to_bits());
             assert!(same, "signal {j} differs side by side");
         }
+    }
+
+    /// The `log-creep` variant's filter adds 10 and 100 times the longest fitted time
+    /// constant; the default adds none; a record that holds one time constant only is refused
+    /// for the variant.
+    #[test]
+    fn the_log_creep_variant_adds_two_decades_and_needs_two_time_constants() {
+        let setup = |samples: usize, variant: usize| OutputSetup {
+            samples,
+            rows: samples,
+            blocks: None,
+            ts: 1e-3,
+            variant,
+            parsimonious: true,
+            paths: 1,
+        };
+        let taus = |variant: usize| {
+            let f = CreepEffect.filter(&setup(30_000, variant)).unwrap();
+            let spec = f.spec(&vec![0.01; f.n_params()]);
+            let spec = format!("{spec:?}");
+            (f.n_params(), spec)
+        };
+        let (n0, plain) = taus(0);
+        let (n1, log) = taus(LOG_CREEP);
+        assert_eq!(n0, n1, "the same free gains");
+        assert!(plain.contains("[0.01, 0.1, 1.0, 10.0]"), "{plain}");
+        assert!(
+            log.contains("[0.01, 0.1, 1.0, 10.0, 100.0, 1000.0]"),
+            "{log}"
+        );
+        let view = |samples: usize| RecordView {
+            input_names: &["u"],
+            inputs: &[&[0.0; 4]],
+            samples,
+            ts: 1e-3,
+            parsimonious: true,
+        };
+        // 100 samples: a single time constant (0.01 s) within a third of 0.1 s
+        assert_eq!(
+            creep_time_constants(100, 1e-3, true).map(|t| t.len()),
+            Ok(1)
+        );
+        let err = CreepEffect.check_record(&view(100), LOG_CREEP).unwrap_err();
+        assert!(
+            matches!(err, RecordError::TooShort { needed, .. } if needed > 100),
+            "{err:?}"
+        );
     }
 
     /// The tail's time constants carry the last fitted gain: in the spec, in the filter, and
