@@ -257,11 +257,27 @@ pub fn creep_time_constants(
     ts: f64,
     parsimonious: bool,
 ) -> Result<Vec<f64>, usize> {
+    time_constants_over(samples, ts, least_decades(parsimonious, 0))
+}
+
+/// The decades of time constants a grey-box variant needs at least: two in general, on a
+/// parsimonious fit none (one time constant), or one for `log-creep` (two time constants: a
+/// rate per decade to go on with).
+fn least_decades(parsimonious: bool, variant: usize) -> i32 {
+    match (parsimonious, variant) {
+        (false, _) => 2,
+        (true, LOG_CREEP) => 1,
+        (true, _) => 0,
+    }
+}
+
+/// Powers of ten from about 5 samples to about a third of the record, over `decades` at
+/// least (else `Err(needed samples)`).
+fn time_constants_over(samples: usize, ts: f64, decades: i32) -> Result<Vec<f64>, usize> {
     let k_min = (5.0 * ts).log10().ceil() as i32;
     let span = samples as f64 * ts / 3.0;
     // the largest power of ten up to about twice a third of the record
     let k_max = (span.log10() + 0.3).floor() as i32;
-    let decades = if parsimonious { 0 } else { 2 };
     if k_max < k_min + decades {
         let needed = (3.0 * 10f64.powf(k_min as f64 + decades as f64 - 0.3) / ts).ceil() as usize;
         return Err(needed);
@@ -593,9 +609,10 @@ impl Effect for CreepEffect {
         &VARIANTS
     }
     fn filter(&self, setup: &OutputSetup) -> Option<Box<dyn FilterFit>> {
-        let taus = creep_time_constants(setup.samples, setup.ts, setup.parsimonious).ok()?;
+        let decades = least_decades(setup.parsimonious, setup.variant);
+        let taus = time_constants_over(setup.samples, setup.ts, decades).ok()?;
         let last = taus[taus.len() - 1];
-        let tail = if setup.variant == LOG_CREEP && taus.len() >= 2 {
+        let tail = if setup.variant == LOG_CREEP {
             (1..=LOG_TAIL_DECADES)
                 .map(|k| last * 10f64.powi(k))
                 .collect()
@@ -610,31 +627,20 @@ impl Effect for CreepEffect {
     }
     fn check_record(&self, rec: &RecordView, variant: usize) -> Result<(), RecordError> {
         let (n, ts) = (rec.samples, rec.ts);
-        if variant == LOG_CREEP {
-            // two time constants at least: from about 5 samples to a decade above
-            let k_min = (5.0 * ts).log10().ceil();
-            let needed = (3.0 * 10f64.powf(k_min + 1.0 - 0.3) / ts).ceil() as usize;
-            if creep_time_constants(n, ts, rec.parsimonious).map_or(true, |t| t.len() < 2) {
-                return Err(RecordError::TooShort {
-                    needed,
-                    why: format!(
-                        "log-creep goes on at the rate per decade of its last two time constants, which need a record of {:.3e} s or more (two powers of ten from 5 samples, {:.3e} s, within a third of it)",
-                        needed as f64 * ts,
-                        5.0 * ts
-                    ),
-                });
-            }
-        }
-        let taus =
-            creep_time_constants(n, ts, rec.parsimonious).map_err(|needed| RecordError::TooShort {
-                needed,
-                why: format!(
-                    "creep needs time constants (powers of ten{}) between 5 samples ({:.3e} s) and a third of the record ({:.3e} s); a longer record holds them",
-                    if rec.parsimonious { "" } else { " over at least two decades" },
-                    5.0 * ts,
-                    n as f64 * ts / 3.0
-                ),
-            })?;
+        let decades = least_decades(rec.parsimonious, variant);
+        let taus = time_constants_over(n, ts, decades).map_err(|needed| RecordError::TooShort {
+            needed,
+            why: format!(
+                "creep needs time constants (powers of ten{}) between 5 samples ({:.3e} s) and a third of the record ({:.3e} s); a longer record holds them",
+                match decades {
+                    2 => " over at least two decades",
+                    1 => " over at least one decade: log-creep goes on at the rate of its last two",
+                    _ => "",
+                },
+                5.0 * ts,
+                n as f64 * ts / 3.0
+            ),
+        })?;
         let tau_mid = (taus[0] * taus[taus.len() - 1]).sqrt();
         for (name, u) in rec.input_names.iter().zip(rec.inputs) {
             let hold = longest_hold(u) as f64 * ts;
