@@ -755,3 +755,48 @@ fn log_creep_goes_on_creeping_after_the_record() {
         "drift errors {errors:?} of {want}"
     );
 }
+
+/// The Bouc-Wen exponent: `bouc-wen` recovers n = 2 (a loop outside the n = 1 family) and
+/// keeps n = 1 on a plant of n = 1 measured with noise, where a free n would only fit the
+/// noise.
+#[test]
+fn the_bouc_wen_exponent_is_fitted_where_the_record_shows_it() {
+    let with_n = |n: f64, b: f64, gamma: f64| {
+        plant_edited("bouc_wen_piezo.json", move |s| {
+            let o = &mut s.outputs[0];
+            o.remove(hystbench::effect::dynamics::NAME);
+            let Some(HysteresisSpec::BoucWen(bw)) = o.paths[0].get_mut::<HysteresisSpec>() else {
+                panic!("not Bouc-Wen")
+            };
+            (bw.n, bw.b, bw.gamma) = (n, b, gamma);
+        })
+    };
+    let exponent = |m: &FittedGreyBox| {
+        let out = &m.plant.spec.outputs[0];
+        match out.paths[0].get::<HysteresisSpec>() {
+            Some(HysteresisSpec::BoucWen(bw)) => bw.n,
+            other => panic!("not Bouc-Wen: {other:?}"),
+        }
+    };
+    let scenario = |noise: f64| {
+        format!(
+            r#"{{"name": "sines", "sampling_period_s": 0.001, "samples": 4000,
+                "noise_std": {noise}, "seed": 5, "inputs": [{{"sum": [
+                {{"decaying_sine": {{"amplitude": 35.0, "frequency_hz": 2.0, "decay_time_s": 3.0}}}},
+                {{"sine": {{"amplitude": 5.0, "frequency_hz": 9.0}}}}]}}]}}"#
+        )
+    };
+    // n = 2 with the n = 1 plant's loop height (A / (B + Gamma))^(1/n) of about 7 um
+    let rec = record(&with_n(2.0, 0.004, 0.002), &scenario(0.0));
+    let m = fit(&rec, "bouc-wen");
+    let n = exponent(&m);
+    eprintln!("n = 2 plant: fitted n {n}, R^2 {:?}", m.fit.r2);
+    assert!((n - 2.0).abs() < 0.02, "fitted n {n}");
+    assert!(m.fit.r2.unwrap() > 0.99999, "R^2 {:?}", m.fit.r2);
+    let plain = with_n(1.0, 0.02, 0.01);
+    let noisy = record(&plain, &scenario(0.05));
+    let m1 = fit(&noisy, "bouc-wen");
+    let n1 = exponent(&m1);
+    eprintln!("n = 1 plant with noise: fitted n {n1}, R^2 {:?}", m1.fit.r2);
+    assert_eq!(n1, 1.0, "a free n kept on noise");
+}

@@ -210,6 +210,14 @@ pub trait TermFit: Send + Sync {
     fn param_bounds(&self) -> Vec<(f64, f64)> {
         vec![(f64::NEG_INFINITY, f64::INFINITY); self.n_params()]
     }
+    /// The parameters held at 0 (their simplest model: a Bouc-Wen exponent of 1) while the
+    /// fit runs from its starts, then freed from its result; their fit is kept only where it
+    /// lowers the fitting error significantly
+    /// ([`crate::metrics::significantly_lower_error`]), else they stay at 0 through every
+    /// later refit. None by default.
+    fn optional_params(&self) -> Vec<bool> {
+        vec![false; self.n_params()]
+    }
     /// Joint static starting grid: point i of every term is tried together, on the model
     /// without the filters that [`FilterFit::off_when_static`] (empty: no grid).
     fn start_grid(&self) -> Vec<Vec<f64>> {

@@ -209,29 +209,41 @@ fn max_abs(u: &[f64]) -> f64 {
     crate::metrics::max_abs(u).max(1e-300)
 }
 
-/// -htilde for A = 1 (h is linear in A for fixed B and Gamma: the exact update scales with A).
-fn bouc_wen_column(u: &[f64], b: f64, gamma: f64) -> Vec<f64> {
-    let spec = BoucWenSpec::unit(b, gamma);
+/// -htilde for A = 1 and exponent `n`: h of amplitude A is A times the unit loop of
+/// B A^(n-1), Gamma A^(n-1) (for n = 1, h is linear in A: the exact update scales with A).
+fn bouc_wen_column(u: &[f64], b: f64, gamma: f64, n: f64) -> Vec<f64> {
+    let spec = BoucWenSpec {
+        n,
+        ..BoucWenSpec::unit(b, gamma)
+    };
     match spec.check() {
         Ok(p) => p.operator().apply(u),
         Err(_) => vec![f64::NAN; u.len()],
     }
 }
 
-/// The grey-box Bouc-Wen term's parameters: B = exp(theta_0) / range, Gamma = B tanh(theta_1).
-fn bouc_wen_params(th: &[f64], range: f64) -> (f64, f64) {
-    let b = th[0].exp() / range;
-    (b, b * th[1].clamp(-LIMIT, LIMIT).tanh())
+/// The grey-box Bouc-Wen column's shape (B, Gamma, n) of the unit loop (A = 1):
+/// n = 1 + theta_2 where the exponent is free ([`Bw::exponent`], else 1),
+/// B = exp(theta_0) / range^n (so that theta_0 sets the loop's shape whatever the input's
+/// unit), Gamma = B tanh(theta_1).
+fn bouc_wen_params(th: &[f64], bw: Bw) -> (f64, f64, f64) {
+    let n = if bw.exponent {
+        1.0 + th[2].clamp(0.0, EXPONENT_LIMIT)
+    } else {
+        1.0
+    };
+    let b = th[0].exp() / bw.range.powf(n);
+    (b, b * th[1].clamp(-LIMIT, LIMIT).tanh(), n)
 }
 
-/// A Bouc-Wen term with n = 1 and d = 0 (the path's gain is d).
-fn bouc_wen_term_spec(a: f64, b: f64, gamma: f64, d: f64) -> HysteresisSpec {
+/// A Bouc-Wen term of exponent `n` and gain `d` (0 beside a path's gain).
+fn bouc_wen_term_spec(a: f64, b: f64, gamma: f64, n: f64, d: f64) -> HysteresisSpec {
     HysteresisSpec::BoucWen(BoucWenSpec {
         d,
         a,
         b,
         gamma,
-        n: 1.0,
+        n,
         initial_h: 0.0,
     })
 }
@@ -377,22 +389,36 @@ pub fn draw_envelopes(
 struct Bw {
     range: f64,
     sign: f64,
+    /// Whether the exponent n is fitted (a third parameter, n - 1 in [0, [`EXPONENT_LIMIT`]];
+    /// else n = 1).
+    exponent: bool,
 }
+
+/// The largest n - 1 of a fitted Bouc-Wen exponent.
+const EXPONENT_LIMIT: f64 = 3.0;
+
+/// The step of the exponent's forward difference: at n = 1 the column is the exact update
+/// and beside it the sub-stepped RK4 of n > 1 ([`crate::effect::bouc_wen`]), whose error
+/// (up to about 6e-6 of the loop) a step of [`FD_STEP`] would make larger than the
+/// derivative; at 1e-3 it is below 1 % of it.
+const EXPONENT_STEP: f64 = 1e-3;
 
 /// The column of `bw` at `th` ([`Bw`]).
 fn bw_column(u: &[f64], bw: Bw, th: &[f64]) -> Vec<f64> {
-    let (b, g) = bouc_wen_params(th, bw.range);
-    let mut c = bouc_wen_column(u, b, g);
+    let (b, g, n) = bouc_wen_params(th, bw);
+    let mut c = bouc_wen_column(u, b, g, n);
     if bw.sign < 0.0 {
         c.iter_mut().for_each(|v| *v = -*v);
     }
     c
 }
 
-/// The Bouc-Wen term of weight `c` >= 0 on the column of `bw` at `th`, with gain `d`.
+/// The Bouc-Wen term of weight `c` >= 0 on the column of `bw` at `th`, with gain `d`: A = c
+/// and, for n > 1, the unit loop's B and Gamma over c^(n-1) ([`bouc_wen_column`]).
 fn bw_spec(bw: Bw, th: &[f64], c: f64, d: f64) -> HysteresisSpec {
-    let (b, g) = bouc_wen_params(th, bw.range);
-    bouc_wen_term_spec(bw.sign * c, b, bw.sign * g, d)
+    let (b, g, n) = bouc_wen_params(th, bw);
+    let s = if n == 1.0 { 1.0 } else { c.powf(n - 1.0) };
+    bouc_wen_term_spec(bw.sign * c, b / s, bw.sign * g / s, n, d)
 }
 
 /// d/d theta_q of a_coef * (Bouc-Wen column) by a forward difference.
@@ -404,23 +430,34 @@ fn bouc_wen_derivative(
     base: &[f64],
     a_coef: f64,
 ) -> Vec<f64> {
+    let step = if q == 2 { EXPONENT_STEP } else { FD_STEP };
     let mut t2 = th.to_vec();
-    t2[q] += FD_STEP;
+    t2[q] += step;
     let c1 = bw_column(u, bw, &t2);
     c1.iter()
         .zip(base.iter())
-        .map(|(x, y)| a_coef * (x - y) / FD_STEP)
+        .map(|(x, y)| a_coef * (x - y) / step)
         .collect()
 }
 
-const BOUC_WEN_PARAMS: [&str; 2] = ["bouc_wen.log_b", "bouc_wen.gamma_ratio"];
+const BOUC_WEN_PARAMS: [&str; 3] = [
+    "bouc_wen.log_b",
+    "bouc_wen.gamma_ratio",
+    "bouc_wen.exponent",
+];
 
-/// The static starting grid of a Bouc-Wen term: B range 0.1..10, Gamma / B -0.5..0.5.
-fn bouc_wen_grid() -> Vec<Vec<f64>> {
+/// The static starting grid of a Bouc-Wen term: B range 0.1..10, Gamma / B -0.5..0.5, and,
+/// where the exponent is free, n = 1 (it is freed once the others have settled:
+/// [`TermFit::optional_params`]).
+fn bouc_wen_grid(exponent: bool) -> Vec<Vec<f64>> {
     let mut g = Vec::new();
     for br in [0.1f64, 0.3, 1.0, 3.0, 10.0] {
         for ratio in [-0.5f64, 0.0, 0.5] {
-            g.push(vec![br.ln(), ratio.atanh()]);
+            let mut p = vec![br.ln(), ratio.atanh()];
+            if exponent {
+                p.push(0.0);
+            }
+            g.push(p);
         }
     }
     g
@@ -559,27 +596,27 @@ pub fn input_map_knots_by_levels(u: &[f64], values: &[f64], n: usize) -> Vec<f64
 /// its nonlinear parameters, start grid, column, and the extra path it writes when its
 /// weight is positive.
 fn bw_n_params(bw: Option<Bw>) -> usize {
-    if bw.is_some() {
-        2
-    } else {
-        0
+    match bw {
+        Some(b) if b.exponent => 3,
+        Some(_) => 2,
+        None => 0,
     }
 }
 
 fn bw_param_names(bw: Option<Bw>) -> Vec<&'static str> {
-    if bw.is_some() {
-        BOUC_WEN_PARAMS.to_vec()
-    } else {
-        Vec::new()
+    BOUC_WEN_PARAMS[..bw_n_params(bw)].to_vec()
+}
+
+fn bw_param_bounds(bw: Option<Bw>) -> Vec<(f64, f64)> {
+    let mut b = vec![(f64::NEG_INFINITY, f64::INFINITY); bw_n_params(bw).min(2)];
+    if bw_n_params(bw) == 3 {
+        b.push((0.0, EXPONENT_LIMIT));
     }
+    b
 }
 
 fn bw_start_grid(bw: Option<Bw>) -> Vec<Vec<f64>> {
-    if bw.is_some() {
-        bouc_wen_grid()
-    } else {
-        Vec::new()
-    }
+    bw.map_or_else(Vec::new, |b| bouc_wen_grid(b.exponent))
 }
 
 fn bw_extra_path(bw: Option<Bw>, th: &[f64], c: f64) -> Option<Box<dyn EffectSpec>> {
@@ -843,7 +880,7 @@ impl TermFit for PiTerm<'_> {
         names
     }
     fn param_bounds(&self) -> Vec<(f64, f64)> {
-        let mut b = vec![(f64::NEG_INFINITY, f64::INFINITY); bw_n_params(self.bw)];
+        let mut b = bw_param_bounds(self.bw);
         b.extend(std::iter::repeat_n(
             (-SPLIT_LIMIT, SPLIT_LIMIT),
             self.split.n_params(),
@@ -1100,6 +1137,7 @@ impl<'a> OutputMapTerm<'a> {
             bw: (setup.variant == 0).then_some(Bw {
                 range,
                 sign: setup.sign,
+                exponent: false,
             }),
             slope: std::sync::Mutex::new(None),
             held_out: prev
@@ -1463,7 +1501,8 @@ impl TermFit for OutputMapTerm<'_> {
     /// A play's increment keeps its weight of the path's sign ([`OutputMapTerm::weights_of`]).
     fn param_bounds(&self) -> Vec<(f64, f64)> {
         let free = (f64::NEG_INFINITY, f64::INFINITY);
-        let mut b = vec![free; bw_n_params(self.bw) + 1];
+        let mut b = bw_param_bounds(self.bw);
+        b.push(free);
         b.extend((0..self.x_len()).map(|k| {
             self.pi
                 .weights
@@ -1628,8 +1667,9 @@ impl TermFit for OutputMapTerm<'_> {
     }
 }
 
-/// Bouc-Wen (n = 1, Rakotondrabe 2011 form): y = d u - A htilde, A of the path's sign (the
-/// mirrored loop on a negative path: [`Bw`]).
+/// Bouc-Wen (Rakotondrabe 2011 form): y = d u - A htilde, A of the path's sign (the mirrored
+/// loop on a negative path: [`Bw`]), its exponent n held at 1 until the others settle, then
+/// freed and kept where it fits significantly better ([`TermFit::optional_params`]).
 struct BoucWenTerm<'a> {
     u: &'a [f64],
     bw: Bw,
@@ -1641,13 +1681,24 @@ impl TermFit for BoucWenTerm<'_> {
         1
     }
     fn n_params(&self) -> usize {
-        2
+        bw_n_params(Some(self.bw))
     }
     fn param_names(&self) -> Vec<&'static str> {
-        BOUC_WEN_PARAMS.to_vec()
+        bw_param_names(Some(self.bw))
+    }
+    fn param_bounds(&self) -> Vec<(f64, f64)> {
+        bw_param_bounds(Some(self.bw))
+    }
+    /// The exponent: n = 1 unless a free n fits the record significantly better.
+    fn optional_params(&self) -> Vec<bool> {
+        let mut o = vec![false; self.n_params()];
+        if self.bw.exponent {
+            o[2] = true;
+        }
+        o
     }
     fn start_grid(&self) -> Vec<Vec<f64>> {
-        bouc_wen_grid()
+        bw_start_grid(Some(self.bw))
     }
     fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>> {
         let c = bw_memoized(self.u, self.bw, th, &self.bw_memo);
@@ -1717,7 +1768,7 @@ impl Effect for HysteresisEffect {
     /// A piezo stack's Bouc-Wen loop (d 0.7, A 0.25, B 0.018, Gamma 0.006; the shipped plants'
     /// order of magnitude).
     fn example(&self) -> Option<Box<dyn EffectSpec>> {
-        Some(Box::new(bouc_wen_term_spec(0.25, 0.018, 0.006, 0.7)))
+        Some(Box::new(bouc_wen_term_spec(0.25, 0.018, 0.006, 1.0, 0.7)))
     }
     fn draw(&self, ctx: &DrawContext, dice: &mut Dice) -> Option<Box<dyn EffectSpec>> {
         Some(Box::new(draw(ctx, dice)))
@@ -1789,6 +1840,7 @@ impl Effect for HysteresisEffect {
                 bw: Bw {
                     range: max_abs(&seen),
                     sign: setup.sign,
+                    exponent: true,
                 },
                 bw_memo: BwMemo::default(),
             }),
@@ -1802,6 +1854,7 @@ impl Effect for HysteresisEffect {
                 let bw = (v == 0).then(|| Bw {
                     range: max_abs(&seen),
                     sign: setup.sign,
+                    exponent: false,
                 });
                 let knots = match (v, &values) {
                     (0, Some(l)) => input_map_knots_by_levels(&seen, l, input_map_ramps(count)),
@@ -2081,7 +2134,11 @@ mod tests {
         for sign in [1.0, -1.0] {
             let thresholds = pi_thresholds(&u, 11);
             let knots = input_map_knots(&u, 4);
-            let bw = Some(Bw { range: 3.0, sign });
+            let bw = Some(Bw {
+                range: 3.0,
+                sign,
+                exponent: false,
+            });
             let mut term = PiTerm::new(&u, thresholds, sign, knots, bw);
             assert!(term.cached.is_some());
             term.cached = None;

@@ -2,7 +2,9 @@
 //! the initialisation and Levenberg-Marquardt, and scores the fitted plant by simulating it.
 
 use super::config::{FitOptions, CV_FOLDS, FEWER_PLAYS, RIDGES};
-use super::fit::{levenberg_marquardt, Chosen, LmResult, OutputProblem, OutputStructure, Rows};
+use super::fit::{
+    free_optional, levenberg_marquardt, Chosen, LmResult, OutputProblem, OutputStructure, Rows,
+};
 use super::{FirstStageParams, FitSummary, FittedGreyBox, GreyBoxConfig, GreyBoxError, OutputFit};
 use crate::data::IoRecord;
 use crate::effect::fitting::{PreviousPath, RecordError, RecordView, SECOND_STAGE_PARAM};
@@ -75,8 +77,40 @@ fn fit_problem(
         }
         iterations += res.iterations;
     }
+    res = with_optional(prob, res, options, &mut iterations)?;
     res.iterations = iterations;
     Ok(res)
+}
+
+/// `res` refitted with the problem's optional parameters freed (a Bouc-Wen exponent), kept
+/// where its residual is significantly lower than `res`'s
+/// ([`crate::metrics::significantly_lower_error`]: the richer model only where the record
+/// shows it, not where a staircase leaves it free to drift); the iterations added to
+/// `iterations`.
+fn with_optional(
+    prob: &OutputProblem,
+    res: LmResult,
+    options: &super::FitOptions,
+    iterations: &mut usize,
+) -> Result<LmResult, GreyBoxError> {
+    let Some(freed) = free_optional(prob, &res, options) else {
+        return Ok(res);
+    };
+    let freed = freed?;
+    *iterations += freed.iterations;
+    if std::env::var_os("HYSTBENCH_TRACE").is_some() {
+        eprintln!(
+            "optional parameters freed: cost {:.6e} -> {:.6e}",
+            res.eval.cost, freed.eval.cost
+        );
+    }
+    Ok(
+        if crate::metrics::significantly_lower_error(&freed.eval.r, &res.eval.r) {
+            freed
+        } else {
+            res
+        },
+    )
 }
 
 /// The samples of a record on which a fit's starts are chosen.
@@ -2171,8 +2205,18 @@ mod tests {
         ];
         for (m, effects) in cases {
             let rec = record(m, 20_000);
-            let (prob, th) = problem_at(&rec, effects, None);
+            let (prob, mut th) = problem_at(&rec, effects, None);
             assert_derivatives_match(&prob, &th, effects, 1e-4);
+            // a Bouc-Wen exponent freed (n = 1.5): the general update's columns; its own
+            // derivative by a forward difference of 1e-3 (`effect::hysteresis`)
+            let optional = prob.optional();
+            if optional.iter().any(|&o| o) {
+                for (t, _) in th.iter_mut().zip(&optional).filter(|(_, &o)| o) {
+                    *t = 0.5;
+                }
+                let label = format!("{effects}, n = 1.5");
+                assert_derivatives_match(&prob, &th, &label, 1e-4);
+            }
         }
         // generalised plays: three split parameters more per path of the default operator
         for (m, effects) in [

@@ -745,6 +745,18 @@ impl<'a> OutputProblem<'a> {
         b
     }
 
+    /// Per parameter, whether its term holds it at 0 unless freeing it pays
+    /// (`TermFit::optional_params`; the filters' never).
+    pub fn optional(&self) -> Vec<bool> {
+        let mut o = vec![false; self.layout.n_theta];
+        for t in self.layout.terms() {
+            for (q, v) in t.params.clone().zip(t.term.optional_params()) {
+                o[q] = v;
+            }
+        }
+        o
+    }
+
     /// The same problem with a relative ridge `lambda` on the terms' coefficients.
     pub fn with_ridge(mut self, lambda: f64) -> Self {
         self.ridge = lambda.max(0.0);
@@ -1993,8 +2005,42 @@ impl LeastSquares for WithDynamics<'_, '_> {
 }
 
 /// Levenberg-Marquardt with More's diagonal scaling on the projected problem; the parameters
-/// where `free` is false are held.
+/// where `free` is false are held, and so are the optional ones at 0
+/// ([`OutputProblem::optional`]: not freed, or freed and refused).
 pub(crate) fn levenberg_marquardt(
+    prob: &OutputProblem,
+    theta0: Vec<f64>,
+    free: &[bool],
+    opts: &FitOptions,
+) -> Result<LmResult, GreyBoxError> {
+    let optional = prob.optional();
+    let free: Vec<bool> = (free.iter().zip(&optional).zip(&theta0))
+        .map(|((&f, &o), &t)| f && !(o && t == 0.0))
+        .collect();
+    levenberg_marquardt_over(prob, theta0, &free, opts)
+}
+
+/// [`levenberg_marquardt`] from `res` with its optional parameters freed (every other
+/// parameter free too); `None` when none is held at 0 (none, or every one already freed by
+/// the start it came from). The caller keeps it where it lowers the fitting error
+/// significantly.
+pub(crate) fn free_optional(
+    prob: &OutputProblem,
+    res: &LmResult,
+    opts: &FitOptions,
+) -> Option<Result<LmResult, GreyBoxError>> {
+    let optional = prob.optional();
+    let held = optional
+        .iter()
+        .zip(&res.theta)
+        .any(|(&o, &t)| o && t == 0.0);
+    held.then(|| {
+        let all = vec![true; prob.n_theta()];
+        levenberg_marquardt_over(prob, res.theta.clone(), &all, opts)
+    })
+}
+
+fn levenberg_marquardt_over(
     prob: &OutputProblem,
     theta0: Vec<f64>,
     free: &[bool],
