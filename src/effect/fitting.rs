@@ -213,8 +213,8 @@ pub trait TermFit: Send + Sync {
     /// The parameters held at 0 (their simplest model: a Bouc-Wen exponent of 1) while the
     /// fit runs from its starts, then freed from its result; their fit is kept only where it
     /// lowers the fitting error significantly
-    /// ([`crate::metrics::significantly_lower_error`]), else they stay at 0 through every
-    /// later refit. None by default.
+    /// ([`crate::metrics::significantly_lower_error`]), else the refits from that result
+    /// (on a long record's whole, with a ridge) hold them at 0. None by default.
     fn optional_params(&self) -> Vec<bool> {
         vec![false; self.n_params()]
     }

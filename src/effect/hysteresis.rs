@@ -430,7 +430,11 @@ fn bouc_wen_derivative(
     base: &[f64],
     a_coef: f64,
 ) -> Vec<f64> {
-    let step = if q == 2 { EXPONENT_STEP } else { FD_STEP };
+    let mut step = if q == 2 { EXPONENT_STEP } else { FD_STEP };
+    if q == 2 && th[2] + step > EXPONENT_LIMIT {
+        // backward at the upper bound, where n stops
+        step = -step;
+    }
     let mut t2 = th.to_vec();
     t2[q] += step;
     let c1 = bw_column(u, bw, &t2);
@@ -1887,6 +1891,7 @@ impl Effect for HysteresisEffect {
         match size.variant {
             0 => (3 + split + plays + input_map_ramps(plays), 0),
             1 => (plays, 0),
+            // the exponent is not counted: it is kept only where the record shows it
             _ => (3, 0),
         }
     }

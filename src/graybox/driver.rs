@@ -83,20 +83,21 @@ fn fit_problem(
 }
 
 /// `res` refitted with the problem's optional parameters freed (a Bouc-Wen exponent), kept
-/// where its residual is significantly lower than `res`'s
-/// ([`crate::metrics::significantly_lower_error`]: the richer model only where the record
-/// shows it, not where a staircase leaves it free to drift); the iterations added to
-/// `iterations`.
+/// where its residual is significantly lower than `res`'s on the samples fitted
+/// ([`crate::metrics::significantly_lower_error`] over eight blocks of them: the richer model
+/// only where the record shows it, not where a staircase leaves it free to drift); the
+/// iterations added to `iterations`. A long record's fit decides on the part its starts run
+/// on; the refit on the whole keeps that decision.
 fn with_optional(
     prob: &OutputProblem,
     res: LmResult,
     options: &super::FitOptions,
     iterations: &mut usize,
 ) -> Result<LmResult, GreyBoxError> {
-    let Some(freed) = free_optional(prob, &res, options) else {
+    // a freed fit that fails (it starts from `res`, so it should not) keeps `res`
+    let Some(Ok(freed)) = free_optional(prob, &res, options) else {
         return Ok(res);
     };
-    let freed = freed?;
     *iterations += freed.iterations;
     if std::env::var_os("HYSTBENCH_TRACE").is_some() {
         eprintln!(

@@ -1752,8 +1752,9 @@ impl<'a> OutputProblem<'a> {
     }
 
     /// This problem's parameters from those of `other` (same filters, other variants of the
-    /// terms): the filters' copied, and a term's copied where both terms name their parameters
-    /// alike.
+    /// terms): the filters' copied, and a term's copied where the other term names its
+    /// parameters alike, followed only by optional parameters held at 0 (the `bouc-wen`
+    /// fit's exponent left at n = 1 starts the default operator's Bouc-Wen term, of n = 1).
     pub fn theta_from(&self, other: &OutputProblem, th: &[f64]) -> Vec<f64> {
         let mut t = vec![0.0; self.layout.n_theta];
         for (a, b) in self.layout.filters.iter().zip(&other.layout.filters) {
@@ -1762,8 +1763,12 @@ impl<'a> OutputProblem<'a> {
         for (pa, pb) in self.layout.paths.iter().zip(&other.layout.paths) {
             for (a, b) in pa.terms.iter().zip(&pb.terms) {
                 let names = a.term.param_names();
-                if !names.is_empty() && names == b.term.param_names() {
-                    t[a.params.clone()].copy_from_slice(&th[b.params.clone()]);
+                let theirs = b.term.param_names();
+                let (m, from) = (names.len(), &th[b.params.clone()]);
+                let held = b.term.optional_params();
+                let rest_held = (m..theirs.len()).all(|k| held[k] && from[k] == 0.0);
+                if m > 0 && theirs.len() >= m && names[..] == theirs[..m] && rest_held {
+                    t[a.params.clone()].copy_from_slice(&from[..m]);
                 }
             }
         }
