@@ -2233,6 +2233,42 @@ mod tests {
         }
     }
 
+    /// The default operator starts from the `bouc-wen` fit (its warm start) where that fit's
+    /// exponent stayed at 1, and not from a fit of n > 1 (whose B is scaled for that n).
+    #[test]
+    fn the_default_operator_starts_from_a_bouc_wen_fit_of_n_1() {
+        let rec = record(1, 5_000);
+        let (bw, _) = problem_at(&rec, "bouc-wen", None);
+        let (pi, _) = problem_at(&rec, "hysteresis", None);
+        let names: Vec<&str> = pi.term_param_names().concat();
+        let at = |name: &str| names.iter().position(|n| *n == name).unwrap();
+        let theirs: Vec<&str> = bw.term_param_names().concat();
+        let exponent = theirs
+            .iter()
+            .position(|n| *n == "bouc_wen.exponent")
+            .unwrap();
+        let mut th = vec![0.0; bw.n_theta()];
+        let (b, g) = (
+            theirs.iter().position(|n| *n == "bouc_wen.log_b").unwrap(),
+            theirs
+                .iter()
+                .position(|n| *n == "bouc_wen.gamma_ratio")
+                .unwrap(),
+        );
+        (th[b], th[g]) = (0.7, -0.3);
+        let from = pi.theta_from(&bw, &th);
+        assert_eq!(
+            (from[at("bouc_wen.log_b")], from[at("bouc_wen.gamma_ratio")]),
+            (0.7, -0.3)
+        );
+        th[exponent] = 0.5;
+        let from = pi.theta_from(&bw, &th);
+        assert_eq!(
+            (from[at("bouc_wen.log_b")], from[at("bouc_wen.gamma_ratio")]),
+            (0.0, 0.0)
+        );
+    }
+
     /// The analytic derivatives of `prob` at `th` (fixed linear coefficients) against central
     /// differences of the whole model with step `h`.
     fn assert_derivatives_match(prob: &OutputProblem, th: &[f64], label: &str, h: f64) {

@@ -57,7 +57,8 @@ use std::path::Path;
 /// fitted to a quasi-static plant costs a sample of lag at every step of the input, and on a
 /// short record a mode or creep fitted to what is not there extrapolates badly: the held-out
 /// errors show it. Each chain comes with its Bouc-Wen operator alone first (three parameters a
-/// path, saturating loops that extrapolate as the physics does) and then the default operator
+/// path, four where the record shows an exponent n > 1; saturating loops that extrapolate as
+/// the physics does) and then the default operator
 /// (Prandtl-Ishlinskii plays, an input map and a Bouc-Wen term: any loop shape, but plays and
 /// ramps fitted to a few hundred samples can extrapolate badly). When none fits (no input
 /// reverses), [`LINEAR_BASE`].
