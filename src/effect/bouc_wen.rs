@@ -5,7 +5,7 @@
 //! exact per-sample solution: with v = |du| and s = sgn(du), dh/dv = s A - k h where
 //! k = B + s Gamma sgn(h), so h = h_inf + (h0 - h_inf) e^(-k v) with h_inf = s A / k; the step is
 //! split where h crosses 0. This update is unconditionally stable. For n != 1 the same equation in
-//! v is integrated by RK4 with sub-steps sized by the state's local rate ([`bouc_wen_general`]).
+//! v is integrated by RK4 with sub-steps sized by the state's local rate (`bouc_wen_general`).
 //!
 //! Bounded and with a physical loop when A > 0, B + Gamma > 0 and B >= |Gamma|; then, with
 //! h(0) = 0 and n = 1, |h| <= A / (B + Gamma).
