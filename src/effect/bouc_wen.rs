@@ -214,7 +214,8 @@ pub fn bouc_wen_exact(h0: f64, v: f64, s: f64, a: f64, b: f64, gamma: f64) -> f6
 /// The largest change of the general exponent's state x in one RK4 sub-step, against the
 /// state's local rate constant |f'(x)| and its scale ([`bouc_wen_general`]): about 6e-6 of
 /// the loop from the exact update near n = 1 (0.1: 4e-7, 0.05: 2e-8, at 1.4 and 2.3 times
-/// the default `identify` time on a record of a fast multisine).
+/// the default `identify` time on a record of a fast multisine, the 0.05 build's exponent
+/// difference of 1e-4 in place of 1e-3).
 const SUB_STEP: f64 = 0.2;
 
 /// The update of h over an input path of length `v` in direction `s` for any exponent n >= 1
@@ -396,8 +397,9 @@ mod tests {
     }
 
     /// The general update near n = 1 is the exact one to 2e-5 of the loop (a grey-box fit's
-    /// derivative in n compares them), on a loop of a few samples per branch, where a sample's path is many
-    /// times the length over which h settles, on either side of a loop that snaps back.
+    /// derivative in n compares them), on a loop of a few samples per branch, where a
+    /// sample's path is many times the length over which h settles, on either side of a loop
+    /// that snaps back.
     #[test]
     fn general_exponent_tends_to_the_exact_update() {
         let u: Vec<f64> = (0..300)

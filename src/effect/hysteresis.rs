@@ -612,11 +612,11 @@ fn bw_param_names(bw: Option<Bw>) -> Vec<&'static str> {
 }
 
 fn bw_param_bounds(bw: Option<Bw>) -> Vec<(f64, f64)> {
-    let mut b = vec![(f64::NEG_INFINITY, f64::INFINITY); bw_n_params(bw).min(2)];
-    if bw_n_params(bw) == 3 {
-        b.push((0.0, EXPONENT_LIMIT));
+    let free = (f64::NEG_INFINITY, f64::INFINITY);
+    match bw_n_params(bw) {
+        3 => vec![free, free, (0.0, EXPONENT_LIMIT)],
+        k => vec![free; k],
     }
-    b
 }
 
 fn bw_start_grid(bw: Option<Bw>) -> Vec<Vec<f64>> {
@@ -1695,11 +1695,7 @@ impl TermFit for BoucWenTerm<'_> {
     }
     /// The exponent: n = 1 unless a free n fits the record significantly better.
     fn optional_params(&self) -> Vec<bool> {
-        let mut o = vec![false; self.n_params()];
-        if self.bw.exponent {
-            o[2] = true;
-        }
-        o
+        (0..self.n_params()).map(|q| q == 2).collect()
     }
     fn start_grid(&self) -> Vec<Vec<f64>> {
         bw_start_grid(Some(self.bw))

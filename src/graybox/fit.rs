@@ -757,6 +757,13 @@ impl<'a> OutputProblem<'a> {
         o
     }
 
+    /// Per parameter, whether it is held at `th`: an optional parameter at 0 (not freed, or
+    /// freed and refused).
+    pub fn held(&self, th: &[f64]) -> Vec<bool> {
+        let o = self.optional();
+        o.iter().zip(th).map(|(&o, &t)| o && t == 0.0).collect()
+    }
+
     /// The same problem with a relative ridge `lambda` on the terms' coefficients.
     pub fn with_ridge(mut self, lambda: f64) -> Self {
         self.ridge = lambda.max(0.0);
@@ -2011,17 +2018,15 @@ impl LeastSquares for WithDynamics<'_, '_> {
 
 /// Levenberg-Marquardt with More's diagonal scaling on the projected problem; the parameters
 /// where `free` is false are held, and so are the optional ones at 0
-/// ([`OutputProblem::optional`]: not freed, or freed and refused).
+/// ([`OutputProblem::held`]: not freed, or freed and refused).
 pub(crate) fn levenberg_marquardt(
     prob: &OutputProblem,
     theta0: Vec<f64>,
     free: &[bool],
     opts: &FitOptions,
 ) -> Result<LmResult, GreyBoxError> {
-    let optional = prob.optional();
-    let free: Vec<bool> = (free.iter().zip(&optional).zip(&theta0))
-        .map(|((&f, &o), &t)| f && !(o && t == 0.0))
-        .collect();
+    let held = prob.held(&theta0);
+    let free: Vec<bool> = free.iter().zip(&held).map(|(&f, &h)| f && !h).collect();
     levenberg_marquardt_over(prob, theta0, &free, opts)
 }
 
@@ -2034,12 +2039,7 @@ pub(crate) fn free_optional(
     res: &LmResult,
     opts: &FitOptions,
 ) -> Option<Result<LmResult, GreyBoxError>> {
-    let optional = prob.optional();
-    let held = optional
-        .iter()
-        .zip(&res.theta)
-        .any(|(&o, &t)| o && t == 0.0);
-    held.then(|| {
+    prob.held(&res.theta).contains(&true).then(|| {
         let all = vec![true; prob.n_theta()];
         levenberg_marquardt_over(prob, res.theta.clone(), &all, opts)
     })
