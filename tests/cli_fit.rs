@@ -350,6 +350,12 @@ fn model_files_round_trip_and_damaged_ones_are_refused() {
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["outputs"]["y1"]["rmse"].is_number() && v["outputs"]["y2"]["r2"].is_number());
+    // the summary names the variants fitted, as `--effects` does
+    let variants = fit_json(&data, "bouc-wen,modes", &dir.path().join("variants.json"));
+    assert_eq!(
+        variants["effects"],
+        serde_json::json!(["bouc-wen", "modes"])
+    );
     let text = std::fs::read_to_string(&out).unwrap();
     let file: serde_json::Value = serde_json::from_str(&text).unwrap();
     // a NaN would be written as null (or a string): none anywhere in the model (read from the

@@ -218,6 +218,13 @@ pub trait TermFit: Send + Sync {
     fn optional_params(&self) -> Vec<bool> {
         vec![false; self.n_params()]
     }
+    /// A second starting grid for the fit with the optional parameters freed, point i of every
+    /// term together: the optional parameters away from 0, in the basin that the fit freed from
+    /// its held result may not reach (a Bouc-Wen exponent of 2 where the fit at n = 1 sits at
+    /// the bound). Empty by default (no optional parameter).
+    fn optional_start_grid(&self) -> Vec<Vec<f64>> {
+        Vec::new()
+    }
     /// Joint static starting grid: point i of every term is tried together, on the model
     /// without the filters that [`FilterFit::off_when_static`] (empty: no grid).
     fn start_grid(&self) -> Vec<Vec<f64>> {

@@ -397,6 +397,11 @@ struct Bw {
 /// The largest n - 1 of a fitted Bouc-Wen exponent.
 const EXPONENT_LIMIT: f64 = 3.0;
 
+/// n - 1 of the second starting grid of a fitted exponent (n = 2): B and Gamma scale with the
+/// amplitude to the power n, so the fit at n = 1 can lie far from the basin of n = 2 (a loop of
+/// n = 2 fitted at n = 1 is a minimum at the bound that freeing n from it does not leave).
+const EXPONENT_RESTART: f64 = 1.0;
+
 /// The step of the exponent's forward difference: at n = 1 the column is the exact update
 /// and beside it the sub-stepped RK4 of n > 1 ([`crate::effect::bouc_wen`]), whose error
 /// (up to about 6e-6 of the loop) a step of [`FD_STEP`] would make larger than the
@@ -621,6 +626,21 @@ fn bw_param_bounds(bw: Option<Bw>) -> Vec<(f64, f64)> {
 
 fn bw_start_grid(bw: Option<Bw>) -> Vec<Vec<f64>> {
     bw.map_or_else(Vec::new, |b| bouc_wen_grid(b.exponent))
+}
+
+/// A term's starting grid `grid` (its Bouc-Wen parameters first) with the exponent at
+/// n = 1 + [`EXPONENT_RESTART`] ([`TermFit::optional_start_grid`]); empty where the exponent
+/// is not fitted.
+fn bw_optional_grid(bw: Option<Bw>, grid: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
+    if !bw.is_some_and(|b| b.exponent) {
+        return Vec::new();
+    }
+    grid.into_iter()
+        .map(|mut p| {
+            p[2] = EXPONENT_RESTART;
+            p
+        })
+        .collect()
 }
 
 fn bw_extra_path(bw: Option<Bw>, th: &[f64], c: f64) -> Option<Box<dyn EffectSpec>> {
@@ -892,6 +912,9 @@ impl TermFit for PiTerm<'_> {
         b
     }
     /// The Bouc-Wen column's grid, the plays classical (a split of 0) at every point.
+    fn optional_start_grid(&self) -> Vec<Vec<f64>> {
+        bw_optional_grid(self.bw, self.start_grid())
+    }
     fn start_grid(&self) -> Vec<Vec<f64>> {
         let mut g = bw_start_grid(self.bw);
         let n = self.split.n_params();
@@ -1515,6 +1538,9 @@ impl TermFit for OutputMapTerm<'_> {
         }));
         b
     }
+    fn optional_start_grid(&self) -> Vec<Vec<f64>> {
+        bw_optional_grid(self.bw, self.start_grid())
+    }
     fn start_grid(&self) -> Vec<Vec<f64>> {
         let extra = 1 + self.x_len();
         bw_start_grid(self.bw)
@@ -1699,6 +1725,9 @@ impl TermFit for BoucWenTerm<'_> {
     }
     fn start_grid(&self) -> Vec<Vec<f64>> {
         bw_start_grid(Some(self.bw))
+    }
+    fn optional_start_grid(&self) -> Vec<Vec<f64>> {
+        bw_optional_grid(Some(self.bw), self.start_grid())
     }
     fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>> {
         let c = bw_memoized(self.u, self.bw, th, &self.bw_memo);

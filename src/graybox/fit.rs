@@ -1922,6 +1922,36 @@ impl<'a> OutputProblem<'a> {
         vec![th]
     }
 
+    /// The start of a fit with the optional parameters freed in their second basin: `th` (a
+    /// fit with them held) with the terms' [`TermFit::optional_start_grid`] point of the
+    /// lowest cost set in their slices (the other terms and the filters as fitted); `None`
+    /// when no term has such a grid or no point runs.
+    pub(crate) fn optional_start(&self, th: &[f64]) -> Option<Vec<f64>> {
+        let grids: Vec<(Range<usize>, Vec<Vec<f64>>)> = self
+            .layout
+            .terms()
+            .map(|t| (t.params.clone(), t.term.optional_start_grid()))
+            .filter(|(_, g)| !g.is_empty())
+            .collect();
+        let points = grids.iter().map(|(_, g)| g.len()).min()?;
+        let at = |i: usize| {
+            let mut t = th.to_vec();
+            for (r, g) in &grids {
+                t[r.clone()].copy_from_slice(&g[i]);
+            }
+            t
+        };
+        let mut best: Option<(f64, usize)> = None;
+        for i in 0..points {
+            if let Some(e) = self.eval(&at(i), false) {
+                if e.cost.is_finite() && best.is_none_or(|(c, _)| e.cost < c) {
+                    best = Some((e.cost, i));
+                }
+            }
+        }
+        best.map(|(_, i)| at(i))
+    }
+
     /// The fitted output as a plant output spec.
     pub fn output_spec(&self, th: &[f64], coef: &[f64]) -> OutputSpec {
         let mut paths = Vec::new();
@@ -2031,9 +2061,10 @@ pub(crate) fn levenberg_marquardt(
 }
 
 /// [`levenberg_marquardt`] from `res` with its optional parameters freed (every other
-/// parameter free too); `None` when none is held at 0 (none, or every one already freed by
-/// the start it came from). The caller keeps it where it lowers the fitting error
-/// significantly.
+/// parameter free too), and again from [`OutputProblem::optional_start`] (the optional
+/// parameters' second basin): the lower cost of the two; `None` when none is held at 0
+/// (none, or every one already freed by the start it came from). The caller keeps it where
+/// it lowers the fitting error significantly.
 pub(crate) fn free_optional(
     prob: &OutputProblem,
     res: &LmResult,
@@ -2041,7 +2072,24 @@ pub(crate) fn free_optional(
 ) -> Option<Result<LmResult, GreyBoxError>> {
     prob.held(&res.theta).contains(&true).then(|| {
         let all = vec![true; prob.n_theta()];
-        levenberg_marquardt_over(prob, res.theta.clone(), &all, opts)
+        let from_held = levenberg_marquardt_over(prob, res.theta.clone(), &all, opts);
+        let Some(Ok(restart)) = prob
+            .optional_start(&res.theta)
+            .map(|t| levenberg_marquardt_over(prob, t, &all, opts))
+        else {
+            return from_held;
+        };
+        Ok(match from_held {
+            Ok(mut a) if a.eval.cost <= restart.eval.cost => {
+                a.iterations += restart.iterations;
+                a
+            }
+            Ok(a) => LmResult {
+                iterations: a.iterations + restart.iterations,
+                ..restart
+            },
+            Err(_) => restart,
+        })
     })
 }
 

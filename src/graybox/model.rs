@@ -214,11 +214,18 @@ impl FittedGreyBox {
         self.config.effects()
     }
 
-    /// The fit's summary as `fit --json` prints it: the effects, the mean RMSE and R^2 over
-    /// the outputs, and each output's for several.
+    /// The fit's summary as `fit --json` prints it: the effects as `--effects` names them
+    /// (variants: `bouc-wen`, `modes`), the mean RMSE and R^2 over the outputs, and each
+    /// output's for several.
     pub fn summary_json(&self) -> serde_json::Value {
+        let list = self.config.effect_list();
+        let effects: Vec<&str> = if self.effects().is_empty() {
+            Vec::new()
+        } else {
+            list.split(',').collect()
+        };
         let mut v = serde_json::json!({
-            "effects": self.effects().iter().map(|e| e.as_str()).collect::<Vec<_>>(),
+            "effects": effects,
             "rmse": self.fit.rmse,
             "r2": self.fit.r2,
         });
