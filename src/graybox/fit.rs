@@ -2062,7 +2062,8 @@ pub(crate) fn levenberg_marquardt(
 
 /// [`levenberg_marquardt`] from `res` with its optional parameters freed (every other
 /// parameter free too), and again from [`OutputProblem::optional_start`] (the optional
-/// parameters' second basin): the lower cost of the two; `None` when none is held at 0
+/// parameters' second basin), which replaces the first where its fitting residual is
+/// significantly lower ([`crate::metrics::significantly_lower_error`]); `None` when none is held at 0
 /// (none, or every one already freed by the start it came from). The caller keeps it where
 /// it lowers the fitting error significantly.
 pub(crate) fn free_optional(
@@ -2079,15 +2080,19 @@ pub(crate) fn free_optional(
         else {
             return from_held;
         };
+        // the second basin only where it fits significantly better than the first's
+        // (a search over two basins finds a lower cost on noise more often than one)
         Ok(match from_held {
-            Ok(mut a) if a.eval.cost <= restart.eval.cost => {
+            Ok(a) if crate::metrics::significantly_lower_error(&restart.eval.r, &a.eval.r) => {
+                LmResult {
+                    iterations: a.iterations + restart.iterations,
+                    ..restart
+                }
+            }
+            Ok(mut a) => {
                 a.iterations += restart.iterations;
                 a
             }
-            Ok(a) => LmResult {
-                iterations: a.iterations + restart.iterations,
-                ..restart
-            },
             Err(_) => restart,
         })
     })
