@@ -70,6 +70,11 @@ pub struct FitOptions {
     /// fitted from the grid of starts; an output whose parameters do not fit its problem
     /// (another number of creep time constants, say) is fitted from the starts. Empty: none.
     pub refine_from: Vec<super::FirstStageParams>,
+    /// Free the optional parameters (a Bouc-Wen exponent) from a second starting grid too
+    /// (`TermFit::optional_start_grid`: n = 2), where the fit at n = 1 sits at the bound far
+    /// from the true n. On by default; the identifier's bases turn it off (held out on own
+    /// zoo seed 1084, it cost a short 2-DoF record and 45 % of their time: `docs/benchmarks.md`).
+    pub second_basin: bool,
 }
 
 /// The default [`FitOptions::starts_rows`]. The starts of a fit (a grid's best points, the
@@ -108,6 +113,7 @@ impl Default for FitOptions {
             samples_per_parameter: 10,
             starts_rows: STARTS_ROWS,
             refine_from: Vec::new(),
+            second_basin: true,
         }
     }
 }

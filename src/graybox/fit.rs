@@ -2061,8 +2061,8 @@ pub(crate) fn levenberg_marquardt(
 }
 
 /// [`levenberg_marquardt`] from `res` with its optional parameters freed (every other
-/// parameter free too), and again from [`OutputProblem::optional_start`] (the optional
-/// parameters' second basin), which replaces the first where its fitting residual is
+/// parameter free too), and with [`FitOptions::second_basin`] again from
+/// [`OutputProblem::optional_start`] (the optional parameters' second basin), which replaces the first where its fitting residual is
 /// significantly lower ([`crate::metrics::significantly_lower_error`]); `None` when none is held at 0
 /// (none, or every one already freed by the start it came from). The caller keeps it where
 /// it lowers the fitting error significantly.
@@ -2074,8 +2074,10 @@ pub(crate) fn free_optional(
     prob.held(&res.theta).contains(&true).then(|| {
         let all = vec![true; prob.n_theta()];
         let from_held = levenberg_marquardt_over(prob, res.theta.clone(), &all, opts);
-        let Some(Ok(restart)) = prob
-            .optional_start(&res.theta)
+        let Some(Ok(restart)) = opts
+            .second_basin
+            .then(|| prob.optional_start(&res.theta))
+            .flatten()
             .map(|t| levenberg_marquardt_over(prob, t, &all, opts))
         else {
             return from_held;

@@ -612,6 +612,10 @@ fn list_config(train: &IoRecord, list: &str, n_fit: usize) -> Option<GreyBoxConf
     cfg.options.samples_per_parameter = BASE_SAMPLES_PER_PARAMETER;
     cfg.options.plays = BASE_PLAYS;
     cfg.options.cross_ridge = BASE_CROSS_RIDGE;
+    // a search of the exponent's second basin cost a held-out short 2-DoF record (own zoo
+    // seed 1084, member 49: y2 0.9949 -> 0.9502) and 45 % of their time, for no record gained
+    // (`docs/benchmarks.md`)
+    cfg.options.second_basin = false;
     // the base's lists and ridges are chosen by validation; the second stage is not in them
     cfg.options.output_map = false;
     // a long record's fitting part takes creep over the decades it spans, one or more (a
