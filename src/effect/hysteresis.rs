@@ -628,21 +628,6 @@ fn bw_start_grid(bw: Option<Bw>) -> Vec<Vec<f64>> {
     bw.map_or_else(Vec::new, |b| bouc_wen_grid(b.exponent))
 }
 
-/// A term's starting grid `grid` (its Bouc-Wen parameters first) with the exponent at
-/// n = 1 + [`EXPONENT_RESTART`] ([`TermFit::optional_start_grid`]); empty where the exponent
-/// is not fitted.
-fn bw_optional_grid(bw: Option<Bw>, grid: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
-    if !bw.is_some_and(|b| b.exponent) {
-        return Vec::new();
-    }
-    grid.into_iter()
-        .map(|mut p| {
-            p[2] = EXPONENT_RESTART;
-            p
-        })
-        .collect()
-}
-
 fn bw_extra_path(bw: Option<Bw>, th: &[f64], c: f64) -> Option<Box<dyn EffectSpec>> {
     let bw = bw?;
     (c > 0.0).then(|| Box::new(bw_spec(bw, th, c, 0.0)) as Box<dyn EffectSpec>)
@@ -912,9 +897,6 @@ impl TermFit for PiTerm<'_> {
         b
     }
     /// The Bouc-Wen column's grid, the plays classical (a split of 0) at every point.
-    fn optional_start_grid(&self) -> Vec<Vec<f64>> {
-        bw_optional_grid(self.bw, self.start_grid())
-    }
     fn start_grid(&self) -> Vec<Vec<f64>> {
         let mut g = bw_start_grid(self.bw);
         let n = self.split.n_params();
@@ -1538,9 +1520,6 @@ impl TermFit for OutputMapTerm<'_> {
         }));
         b
     }
-    fn optional_start_grid(&self) -> Vec<Vec<f64>> {
-        bw_optional_grid(self.bw, self.start_grid())
-    }
     fn start_grid(&self) -> Vec<Vec<f64>> {
         let extra = 1 + self.x_len();
         bw_start_grid(self.bw)
@@ -1726,8 +1705,15 @@ impl TermFit for BoucWenTerm<'_> {
     fn start_grid(&self) -> Vec<Vec<f64>> {
         bw_start_grid(Some(self.bw))
     }
+    /// The starting grid with the exponent at n = 1 + [`EXPONENT_RESTART`].
     fn optional_start_grid(&self) -> Vec<Vec<f64>> {
-        bw_optional_grid(Some(self.bw), self.start_grid())
+        let mut g = self.start_grid();
+        if self.bw.exponent {
+            g.iter_mut().for_each(|p| p[2] = EXPONENT_RESTART);
+        } else {
+            g.clear();
+        }
+        g
     }
     fn columns<'s>(&'s self, th: &[f64]) -> Vec<Column<'s>> {
         let c = bw_memoized(self.u, self.bw, th, &self.bw_memo);

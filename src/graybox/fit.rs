@@ -1874,33 +1874,8 @@ impl<'a> OutputProblem<'a> {
         for f in &self.layout.filters {
             th[f.params.clone()].copy_from_slice(&f.filter.initial());
         }
-        let grids: Vec<(Range<usize>, Vec<Vec<f64>>)> = self
-            .layout
-            .paths
-            .iter()
-            .flat_map(|p| &p.terms)
-            .map(|t| (t.params.clone(), t.term.start_grid()))
-            .filter(|(_, g)| !g.is_empty())
-            .collect();
-        if let Some(points) = grids.iter().map(|(_, g)| g.len()).min() {
-            let set = |t: &mut Vec<f64>, i: usize| {
-                for (at, g) in &grids {
-                    t[at.clone()].copy_from_slice(&g[i]);
-                }
-            };
-            let mut best = (f64::INFINITY, None);
-            for i in 0..points {
-                let mut t = th.clone();
-                set(&mut t, i);
-                if let Some(e) = self.eval(&t, false) {
-                    if e.cost < best.0 {
-                        best = (e.cost, Some(i));
-                    }
-                }
-            }
-            if let Some(i) = best.1 {
-                set(&mut th, i);
-            }
+        if let Some(t) = self.best_grid_point(&th, |t| t.start_grid()) {
+            th = t;
         }
         for f in &self.layout.filters {
             let at = f.params.clone();
@@ -1927,10 +1902,21 @@ impl<'a> OutputProblem<'a> {
     /// lowest cost set in their slices (the other terms and the filters as fitted); `None`
     /// when no term has such a grid or no point runs.
     pub(crate) fn optional_start(&self, th: &[f64]) -> Option<Vec<f64>> {
+        self.best_grid_point(th, |t| t.optional_start_grid())
+    }
+
+    /// `th` with the joint grid point of the lowest finite cost set in the terms' slices
+    /// (point i of every term's `grid` together; the terms without one and the filters as in
+    /// `th`; the first of equals); `None` when no term has a grid or no point runs.
+    fn best_grid_point(
+        &self,
+        th: &[f64],
+        grid: impl Fn(&dyn TermFit) -> Vec<Vec<f64>>,
+    ) -> Option<Vec<f64>> {
         let grids: Vec<(Range<usize>, Vec<Vec<f64>>)> = self
             .layout
             .terms()
-            .map(|t| (t.params.clone(), t.term.optional_start_grid()))
+            .map(|t| (t.params.clone(), grid(t.term.as_ref())))
             .filter(|(_, g)| !g.is_empty())
             .collect();
         let points = grids.iter().map(|(_, g)| g.len()).min()?;
@@ -1941,15 +1927,15 @@ impl<'a> OutputProblem<'a> {
             }
             t
         };
-        let mut best: Option<(f64, usize)> = None;
+        let mut best = (f64::INFINITY, None);
         for i in 0..points {
             if let Some(e) = self.eval(&at(i), false) {
-                if e.cost.is_finite() && best.is_none_or(|(c, _)| e.cost < c) {
-                    best = Some((e.cost, i));
+                if e.cost < best.0 {
+                    best = (e.cost, Some(i));
                 }
             }
         }
-        best.map(|(_, i)| at(i))
+        best.1.map(at)
     }
 
     /// The fitted output as a plant output spec.
@@ -2062,10 +2048,11 @@ pub(crate) fn levenberg_marquardt(
 
 /// [`levenberg_marquardt`] from `res` with its optional parameters freed (every other
 /// parameter free too), and with [`FitOptions::second_basin`] again from
-/// [`OutputProblem::optional_start`] (the optional parameters' second basin), which replaces the first where its fitting residual is
-/// significantly lower ([`crate::metrics::significantly_lower_error`]); `None` when none is held at 0
-/// (none, or every one already freed by the start it came from). The caller keeps it where
-/// it lowers the fitting error significantly.
+/// [`OutputProblem::optional_start`] (the optional parameters' second basin), which replaces
+/// the first where its fitting residual is significantly lower
+/// ([`crate::metrics::significantly_lower_error`]); `None` when none is held at 0 (none, or
+/// every one already freed by the start it came from). The caller keeps it where it lowers
+/// the fitting error significantly.
 pub(crate) fn free_optional(
     prob: &OutputProblem,
     res: &LmResult,
