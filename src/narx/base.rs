@@ -1590,6 +1590,33 @@ mod tests {
         ));
     }
 
+    /// The identifier's bases search no second basin of a freed exponent (a held-out short
+    /// 2-DoF record lost and 45 % more time, `docs/benchmarks.md`), long record or short,
+    /// where `fit`'s configuration of the same list does.
+    #[test]
+    fn the_bases_search_no_second_basin_where_fit_does() {
+        let record = |n: usize, inputs: usize| {
+            let u: Vec<f64> = (0..n).map(|k| 5.0 * (k as f64 * 0.05).sin()).collect();
+            let y: Vec<f64> = u.iter().map(|v| 0.8 * v).collect();
+            let mut rec = IoRecord::siso("r.csv", 0.001, u, y);
+            if inputs > 1 {
+                let mut second = rec.inputs[0].clone();
+                second.name = "u2".into();
+                rec.inputs.push(second);
+            }
+            rec
+        };
+        for (n, inputs) in [(500, 1), (500, 2), (30_000, 1)] {
+            let rec = record(n, inputs);
+            for list in BASE_EFFECTS {
+                let fit = GreyBoxConfig::from_effect_list(list).expect("a base list parses");
+                assert!(fit.options.second_basin, "{list}: fit searches it");
+                let cfg = list_config(&rec, list, n / 2).expect("config");
+                assert!(!cfg.options.second_basin, "{list}, {n} samples, {inputs} inputs");
+            }
+        }
+    }
+
     /// The two verdicts on a grey-box under a residual network: it must earn its place against
     /// the grey-box alone, and keeps it against a network alone that only ties it.
     #[test]
