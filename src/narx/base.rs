@@ -1612,7 +1612,10 @@ mod tests {
                 let fit = GreyBoxConfig::from_effect_list(list).expect("a base list parses");
                 assert!(fit.options.second_basin, "{list}: fit searches it");
                 let cfg = list_config(&rec, list, n / 2).expect("config");
-                assert!(!cfg.options.second_basin, "{list}, {n} samples, {inputs} inputs");
+                assert!(
+                    !cfg.options.second_basin,
+                    "{list}, {n} samples, {inputs} inputs"
+                );
             }
         }
     }
