@@ -42,6 +42,19 @@ fn quasi_static(file: &str) -> serde_json::Value {
     plant
 }
 
+/// An asymmetric Prandtl-Ishlinskii loop without its mode, driven by two sines: 6,000
+/// samples at 1 ms (a long record).
+fn asymmetric_sines() -> IoRecord {
+    let plant = quasi_static("prandtl_ishlinskii_asymmetric.json");
+    common::record(
+        &plant.to_string(),
+        r#"{"name": "sines", "sampling_period_s": 0.001, "samples": 6000, "seed": 4,
+        "inputs": [{"sum": [{"sine": {"amplitude": 25.0, "frequency_hz": 1.3}},
+        {"sine": {"amplitude": 12.0, "frequency_hz": 3.1}}]}]}"#,
+        0.005,
+    )
+}
+
 /// The default identifier on the first half of `rec` takes a base whose first output's
 /// effects end with `suffix`, and its free run follows the test half to 0.999 or better.
 fn assert_identified_with(rec: &IoRecord, suffix: &str) {
@@ -267,19 +280,65 @@ fn identify_reports_the_grey_box_choice_and_can_leave_it_out() {
 /// mode left out): the base keeps the grey-box fit's second stage, chosen beside the first
 /// stage on the validation part, and the free run follows the test half.
 ///
+/// A long record's output on the grey-box keeps its witnesses (the other candidates that fit
+/// the validation part about as well as the pick, `BaseChoice::witnesses`). They do not
+/// predict: without them the prediction is the same and its band no wider. Where their runs
+/// part from the base's (here shifted by +-10 standard deviations in turn), the band widens
+/// to cover their spread: the record did not decide between them there (independent zoo seed
+/// 45, member 44: a staircase whose test half steps past the training range, band coverage
+/// 0.033 -> 0.997).
+#[test]
+fn a_long_records_witnesses_widen_its_band_where_they_part() {
+    let rec = asymmetric_sines();
+    let (train, test) = rec.split_halves();
+    let m = NarxConfig::new(train.input_names(), train.output_names())
+        .fit(&train)
+        .unwrap();
+    let base = m.base.as_ref().expect("the grey-box base was tried");
+    assert_ne!(base.uses(0), BaseUse::Network, "{base:?}");
+    assert!(!base.outputs[0].witnesses.is_empty(), "{base:?}");
+    assert!(base.outputs[0].alternatives.is_empty(), "{base:?}");
+    let p = m.predict_after(Some(&train), &test, Mode::FreeRun).unwrap();
+    let half = p[0].half_width.clone().expect("a band");
+
+    let mut alone = m.clone();
+    alone.base.as_mut().unwrap().outputs[0].witnesses.clear();
+    let a = alone
+        .predict_after(Some(&train), &test, Mode::FreeRun)
+        .unwrap();
+    assert_eq!(a[0].values, p[0].values);
+    let narrow = a[0].half_width.as_ref().expect("a band");
+    assert!(narrow.iter().zip(&half).all(|(a, h)| a <= h));
+
+    let std = m.outputs[0].scaling.std;
+    let mut parted = m.clone();
+    for (k, w) in parted.base.as_mut().unwrap().outputs[0]
+        .witnesses
+        .iter_mut()
+        .enumerate()
+    {
+        w.output.offset += if k % 2 == 0 { 10.0 } else { -10.0 } * std;
+    }
+    let wide = parted
+        .predict_after(Some(&train), &test, Mode::FreeRun)
+        .unwrap();
+    assert_eq!(wide[0].values, p[0].values);
+    let wide = wide[0].half_width.as_ref().expect("a band");
+    assert!(
+        wide.iter()
+            .zip(&half)
+            .all(|(w, h)| *w > *h && *w >= 10.0 * std),
+        "std {std}, {:?}",
+        &wide[..5]
+    );
+}
+
 /// When the base's run leaves the finite range (a valid model file edited by hand, on inputs
 /// 1e300 times larger), the prediction is reported as diverged (no values, no band, no
 /// score), and `predict` says so and writes nothing; it does not call the model damaged.
 #[test]
 fn an_asymmetric_loop_is_identified_with_its_output_map() {
-    let plant = quasi_static("prandtl_ishlinskii_asymmetric.json");
-    let rec = common::record(
-        &plant.to_string(),
-        r#"{"name": "sines", "sampling_period_s": 0.001, "samples": 6000, "seed": 4,
-        "inputs": [{"sum": [{"sine": {"amplitude": 25.0, "frequency_hz": 1.3}},
-        {"sine": {"amplitude": 12.0, "frequency_hz": 3.1}}]}]}"#,
-        0.005,
-    );
+    let rec = asymmetric_sines();
     let (m, mut test, r2) = identify_first_half(&rec);
     let base = m.base.as_ref().expect("the grey-box base was tried");
     assert!(
@@ -408,6 +467,11 @@ fn a_faster_chirp_is_predicted_by_the_grey_box_under_a_residual_network() {
     (a.train_min, a.train_max) = (1e6, 1e6);
     let p = lost.predict(&test, Mode::FreeRun).unwrap();
     assert_eq!(p[0].values, with[0].values);
+    // (widened where the base's witnesses part from it; without them, that band alone)
+    let half = p[0].half_width.as_ref().expect("a band");
+    assert!(half.iter().all(|&h| h >= band.half_width(0.0)));
+    lost.base.as_mut().unwrap().outputs[0].witnesses.clear();
+    let p = lost.predict(&test, Mode::FreeRun).unwrap();
     let half = p[0].half_width.as_ref().expect("a band");
     assert!(half.iter().all(|&h| h == band.half_width(0.0)));
     // where the residual network leaves its range (here: a range it cannot stay in), the
@@ -419,7 +483,11 @@ fn a_faster_chirp_is_predicted_by_the_grey_box_under_a_residual_network() {
     let alone = narrow.predict(&test, Mode::FreeRun).unwrap();
     assert!(alone[0].diverged_at.is_none() && !alone[0].diverged_members.is_empty());
     let half = alone[0].half_width.as_ref().expect("a band");
-    assert!(half.iter().all(|&h| h == band.half_width(0.0) && h > 0.0));
+    assert!(half.iter().all(|&h| h >= band.half_width(0.0) && h > 0.0));
+    narrow.base.as_mut().unwrap().outputs[0].witnesses.clear();
+    let p = narrow.predict(&test, Mode::FreeRun).unwrap();
+    let half = p[0].half_width.as_ref().expect("a band");
+    assert!(half.iter().all(|&h| h == band.half_width(0.0)));
     let y = &test.outputs[0].values;
     let skip = y.len() - alone[0].values.len();
     let r2_alone = hystbench::metrics::r2(&y[skip..], &alone[0].values).unwrap();

@@ -17,6 +17,13 @@
 //! the committee's own spread ([`super::consensus::committee_spread`]), at prediction only: the
 //! band widens where the fits the record supports part.
 //!
+//! On a long record's output that uses its grey-box base (alone or under a residual network),
+//! the band is at least [`spread_cover`] of the spread of the base's witnesses
+//! (`super::base::BaseChoice::witnesses`: the other candidates that fit the validation part
+//! about as well) with the base's run, at prediction only: where they part, typically where
+//! the test input leaves the training range and their operators extrapolate apart, the band
+//! covers them as it would normal scatter of that spread; where they agree it is as before.
+//!
 //! The validation part comes after the fitting part in time, so the band carries the model's
 //! drift as well as the noise; its free-run residuals are correlated, so the coverage is a
 //! measured property (see `hystbench zoo score`), not a guarantee.
@@ -134,6 +141,37 @@ impl Band {
     }
 }
 
+/// The half-width that covers a spread `s` of plausible runs (a standard deviation: their
+/// scaled median absolute deviation) at [`BAND_LEVEL`], as it would normal scatter: z s, z the
+/// two-sided standard normal quantile of the level (1.96).
+pub fn spread_cover(s: f64) -> f64 {
+    two_sided_normal_quantile(BAND_LEVEL) * s
+}
+
+/// The z with P(|Z| <= z) = `level` for a standard normal Z (`level` in (0, 1)), by bisection
+/// on the error function (Abramowitz & Stegun 7.1.26, error below 1.5e-7).
+pub fn two_sided_normal_quantile(level: f64) -> f64 {
+    // P(|Z| <= z) = erf(z / sqrt 2)
+    let erf = |x: f64| {
+        let t = 1.0 / (1.0 + 0.327_591_1 * x);
+        let poly = t
+            * (0.254_829_592
+                + t * (-0.284_496_736
+                    + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+        1.0 - poly * (-x * x).exp()
+    };
+    let (mut lo, mut hi) = (0.0_f64, 10.0_f64);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if erf(mid / std::f64::consts::SQRT_2) < level {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
 /// Coverage of a band over `from..`: the share of measured samples within prediction +- half
 /// width (`None` over no sample).
 pub fn coverage(measured: &[f64], pred: &[f64], half: &[f64], from: usize) -> Option<f64> {
@@ -220,6 +258,16 @@ mod tests {
         let half = vec![b.half_width(0.0); r.len()];
         let c = coverage(&r, &vec![0.0; r.len()], &half, 0).unwrap();
         assert!((c - 0.95).abs() < 0.01, "{c}");
+    }
+
+    /// The two-sided normal quantiles of the usual levels.
+    #[test]
+    fn the_normal_quantiles_are_the_tabled_ones() {
+        for (level, z) in [(0.95, 1.959964), (0.99, 2.575829), (0.6827, 1.0)] {
+            let q = two_sided_normal_quantile(level);
+            assert!((q - z).abs() < 1e-4, "{level}: {q}");
+        }
+        assert!((spread_cover(2.0) - 3.919928).abs() < 1e-3);
     }
 
     #[test]

@@ -35,6 +35,12 @@
 //! Grey-box models extrapolate as physics does (a test half of larger amplitude, other input
 //! combinations of a 2-DoF plant), where a network trained on 250 samples does not; a network
 //! on the residual adds what the effect library does not describe.
+//!
+//! Physics of which kind, the validation part may not decide: candidates that fit it alike
+//! (a Bouc-Wen loop and a Prandtl-Ishlinskii one, say) part where the input leaves the
+//! training range. A short record's output predicts its committee's median
+//! ([`super::consensus`]); a long record's keeps those candidates as witnesses
+//! ([`BaseChoice::witnesses`]) whose spread with the base widens its band there.
 
 use super::band::{Band, BAND_LEVEL};
 use super::config::{NarxConfig, Protocol};
@@ -356,6 +362,12 @@ pub struct BaseChoice {
     /// order of preference, whose pointwise median with it predicts ([`super::consensus`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub alternatives: Vec<Alternative>,
+    /// On a long record's output that uses the grey-box (alone or under its residual network):
+    /// the other candidates whose validation error came within `MEAN_ERROR_RATIO` of the
+    /// lowest, as fitted on the fitting part. They do not predict: where their runs part from
+    /// the base's, the band widens ([`GreyBoxBase::witness_spread`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub witnesses: Vec<Alternative>,
 }
 
 /// The grey-box base of a fitted model and how each output uses it.
@@ -415,21 +427,30 @@ impl GreyBoxBase {
     /// plant with output `o`'s chain replaced by the member's. A damaged member is an error
     /// naming it and `path`.
     pub fn committee_plants(&self, o: usize, path: &Path) -> Result<Vec<Plant>, NarxError> {
-        let (Some(spec), Some(choice)) = (&self.plant, self.outputs.get(o)) else {
+        let members = self.outputs.get(o).map_or(&[][..], |c| &c.alternatives);
+        self.member_plants(o, members, path)
+    }
+
+    /// The plants of `members` of output `o` (its committee or its witnesses): the base plant
+    /// with output `o`'s chain replaced by each member's. A damaged member is an error naming
+    /// it and `path`.
+    fn member_plants(
+        &self,
+        o: usize,
+        members: &[Alternative],
+        path: &Path,
+    ) -> Result<Vec<Plant>, NarxError> {
+        let Some(spec) = &self.plant else {
             return Ok(Vec::new());
         };
-        choice
-            .alternatives
+        members
             .iter()
             .map(|a| {
                 let mut s = spec.clone();
                 s.outputs[o] = a.output.clone();
                 s.check(path).map_err(|e| NarxError::Damaged {
                     path: path.to_path_buf(),
-                    why: format!(
-                        "the grey-box committee member `{}` of output {o}: {e}",
-                        a.name()
-                    ),
+                    why: format!("the grey-box member `{}` of output {o}: {e}", a.name()),
                 })
             })
             .collect()
@@ -456,15 +477,8 @@ impl GreyBoxBase {
                 departure: None,
             });
         };
-        let runs: Vec<Option<Vec<f64>>> = self
-            .committee_plants(o, &rec.path)?
-            .iter()
-            // (a member that cannot be run takes no part)
-            .map(|plant| run(plant, history, rec).ok()?.swap_remove(o).ok())
-            .collect();
-        let all: Vec<Option<&[f64]>> = std::iter::once(Some(chosen))
-            .chain(runs.iter().map(Option::as_deref))
-            .collect();
+        let runs = self.member_runs(o, &choice.alternatives, history, rec)?;
+        let all = chosen_first(chosen, &runs);
         let median = committee_median(&all);
         let spread = committee_spread(&all);
         let d = departure(chosen, &median, std);
@@ -488,6 +502,48 @@ impl GreyBoxBase {
             departure,
         })
     }
+
+    /// The spread of output `o`'s base run `chosen` over `rec` (after `history`) and its
+    /// witnesses' runs ([`BaseChoice::witnesses`], [`committee_spread`]): zeros without
+    /// witnesses. A witness that cannot be run takes no part.
+    pub fn witness_spread(
+        &self,
+        o: usize,
+        chosen: &[f64],
+        history: Option<&IoRecord>,
+        rec: &IoRecord,
+    ) -> Result<Vec<f64>, NarxError> {
+        let members = self.outputs.get(o).map_or(&[][..], |c| &c.witnesses);
+        if members.is_empty() || self.plant.is_none() {
+            return Ok(vec![0.0; chosen.len()]);
+        }
+        let runs = self.member_runs(o, members, history, rec)?;
+        Ok(committee_spread(&chosen_first(chosen, &runs)))
+    }
+
+    /// Output `o`'s runs of `members` over `rec` (after `history`); `None` for a member that
+    /// cannot be run, which takes no part.
+    fn member_runs(
+        &self,
+        o: usize,
+        members: &[Alternative],
+        history: Option<&IoRecord>,
+        rec: &IoRecord,
+    ) -> Result<Vec<Option<Vec<f64>>>, NarxError> {
+        Ok(self
+            .member_plants(o, members, &rec.path)?
+            .iter()
+            .map(|plant| run(plant, history, rec).ok()?.swap_remove(o).ok())
+            .collect())
+    }
+}
+
+/// The chosen base's run, then its members' runs: the runs a committee's median and spread
+/// take, in that order.
+fn chosen_first<'a>(chosen: &'a [f64], runs: &'a [Option<Vec<f64>>]) -> Vec<Option<&'a [f64]>> {
+    std::iter::once(Some(chosen))
+        .chain(runs.iter().map(Option::as_deref))
+        .collect()
 }
 
 /// An output's committee over a record ([`GreyBoxBase::committee`]).
@@ -799,6 +855,28 @@ fn keeps_residual_network(
     }
 }
 
+/// A long record's witnesses of output `o` (its measurement `y`) picking candidate `pick`:
+/// the other candidates whose mean squared error over the validation part (`n_fit..`) is
+/// within [`MEAN_ERROR_RATIO`] of the lowest, in the candidates' order. They fit the held-out
+/// samples about as well as the pick, so where their runs part from its run the record did
+/// not decide the output (query by committee, [`super::consensus`]).
+fn witnesses_of(cands: &[Candidate], pick: usize, o: usize, y: &[f64], n_fit: usize) -> Vec<usize> {
+    let held = |c: &Candidate| mse(&errors(y, &c.sim[o], n_fit..y.len(), 1.0));
+    let errs: Vec<Option<f64>> = cands.iter().map(held).collect();
+    let lowest = errs.iter().flatten().fold(f64::INFINITY, |a, &b| a.min(b));
+    (0..cands.len())
+        .filter(|&i| i != pick && errs[i].is_some_and(|e| e <= MEAN_ERROR_RATIO * lowest))
+        .collect()
+}
+
+/// With `HYSTBENCH_TRACE` set: an output's witnesses, on standard error.
+fn trace_witnesses(output: &str, cands: &[Candidate], at: &[usize]) {
+    if std::env::var_os("HYSTBENCH_TRACE").is_some() {
+        let names: Vec<String> = at.iter().map(|&i| cands[i].name()).collect();
+        eprintln!("base {output}: witnesses [{}]", names.join(", "));
+    }
+}
+
 /// With `HYSTBENCH_TRACE` set: why a list was not fitted, on standard error.
 fn trace_refused(list: &str, why: &dyn std::fmt::Display) {
     if std::env::var_os("HYSTBENCH_TRACE").is_some() {
@@ -1089,6 +1167,7 @@ impl NarxConfig {
                 base_band: None,
                 network_alone: None,
                 alternatives: Vec::new(),
+                witnesses: Vec::new(),
             });
             base_errors.push(be);
         }
@@ -1096,6 +1175,26 @@ impl NarxConfig {
             .iter()
             .enumerate()
             .map(|(o, &i)| cands[i].sim[o].clone())
+            .collect();
+        // on a long record, each output's witnesses (none on a short record, whose
+        // committees stand for them)
+        let witnesses: Vec<Vec<Alternative>> = (0..choices.len())
+            .map(|o| {
+                if short {
+                    return Vec::new();
+                }
+                let at = witnesses_of(&cands, picks[o], o, &train.outputs[o].values, n_fit);
+                trace_witnesses(&choices[o].name, &cands, &at);
+                at.iter()
+                    .map(|&i| Alternative {
+                        effects: cands[i].effects(),
+                        ridge: cands[i].model.config.options.ridge,
+                        fold: None,
+                        output: cands[i].model.plant.spec.outputs[o].clone(),
+                        band: None,
+                    })
+                    .collect()
+            })
             .collect();
         let chosen: Vec<usize> = (0..choices.len())
             .filter(|&o| choices[o].model == BaseUse::Base)
@@ -1251,6 +1350,12 @@ impl NarxConfig {
             if used && choice.model == BaseUse::Network && choice.base_band.is_none() {
                 choice.base_band =
                     base_band(&train.outputs[o].values, &sim[o], &None, n_fit, short);
+            }
+        }
+        // the witnesses of the outputs that use the base
+        for (choice, w) in choices.iter_mut().zip(witnesses) {
+            if !short && choice.model != BaseUse::Network {
+                choice.witnesses = w;
             }
         }
         // one plant: each output's chain from the candidate it chose
@@ -1640,5 +1745,41 @@ mod tests {
         assert!(keeps_residual_network(true, &residual, &tie, &far));
         assert!(!keeps_residual_network(true, &residual, &errs(0.1), &far));
         assert!(!keeps_residual_network(true, &None, &tie, &far));
+    }
+
+    /// A long record's witnesses are the other candidates within `MEAN_ERROR_RATIO` of the
+    /// lowest validation error (the pick's or another's), in order; a run that diverged (too
+    /// short) or errs more is left out.
+    #[test]
+    fn the_witnesses_are_the_candidates_comparable_on_validation() {
+        let u: Vec<f64> = (0..200).map(|k| (k as f64 * 0.1).sin()).collect();
+        let y = u.clone();
+        let rec = IoRecord::siso("r.csv", 0.001, u, y.clone());
+        let model = GreyBoxConfig::linear().fit(&rec).unwrap();
+        let n_fit = 100;
+        // a run off the measurement by `e` on the validation part: MSE e^2
+        let cand = |e: f64, len: usize| Candidate {
+            list: "dynamics",
+            output_map: false,
+            envelope_split: false,
+            model: model.clone(),
+            sim: vec![(0..len)
+                .map(|k| y[k] + if k < n_fit { 0.0 } else { e })
+                .collect()],
+            folds: Vec::new(),
+        };
+        let ratio = MEAN_ERROR_RATIO.sqrt();
+        let cands = [
+            cand(1.0, 200),
+            cand(0.99 * ratio, 200),
+            cand(1.01 * ratio, 200),
+            cand(1.0, 150),
+            cand(0.5, 200),
+        ];
+        assert_eq!(witnesses_of(&cands[..4], 0, 0, &y, n_fit), vec![1]);
+        assert_eq!(witnesses_of(&cands[..4], 1, 0, &y, n_fit), vec![0]);
+        // a candidate better than the pick sets the bar: the pick's equals fall out
+        assert_eq!(witnesses_of(&cands, 0, 0, &y, n_fit), vec![4]);
+        assert!(witnesses_of(&cands[..1], 0, 0, &y, n_fit).is_empty());
     }
 }

@@ -34,6 +34,11 @@
 //! extrapolation its own folds do not share is the failure this guards against (held-out own
 //! seed 1033, member 56, where no other candidate came within twice the lowest error).
 //!
+//! A long record's output keeps no committee: its validation part chooses among fits of
+//! thousands of samples, and its base predicts alone. Its comparable candidates are kept as
+//! witnesses (`super::base::BaseChoice::witnesses`) whose spread with the base widens its band
+//! (`super::band::spread_cover`), without voting.
+//!
 //! This is query by committee (the committee's disagreement marks the inputs its data did not
 //! decide) and bagging's aggregation (fits on parts of one record, combined) with a median.
 //!

@@ -478,6 +478,16 @@ impl FittedNarx {
                     };
                 }
             }
+            // on a long record, the base's witnesses widen the band, whichever stands, where
+            // they part from its run (`GreyBoxBase::witness_spread`); they never narrow it
+            if mode == Mode::FreeRun && base.uses(o) != super::base::BaseUse::Network {
+                if let Some(h) = p.half_width.as_mut() {
+                    let w = base.witness_spread(o, &g[o], history, rec)?;
+                    for (h, w) in h.iter_mut().zip(&w) {
+                        *h = h.max(super::band::spread_cover(*w));
+                    }
+                }
+            }
         }
         Ok(preds)
     }
