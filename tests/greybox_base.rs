@@ -276,10 +276,6 @@ fn identify_reports_the_grey_box_choice_and_can_leave_it_out() {
     assert!(m.base.is_none());
 }
 
-/// Kuhnen's asymmetric loop (the shipped plant's dead zones squash the top of the loop; its
-/// mode left out): the base keeps the grey-box fit's second stage, chosen beside the first
-/// stage on the validation part, and the free run follows the test half.
-///
 /// A long record's output on the grey-box keeps its witnesses (the other candidates that fit
 /// the validation part about as well as the pick, `BaseChoice::witnesses`). They do not
 /// predict: without them the prediction is the same and its band no wider. Where their runs
@@ -333,6 +329,10 @@ fn a_long_records_witnesses_widen_its_band_where_they_part() {
     );
 }
 
+/// Kuhnen's asymmetric loop (the shipped plant's dead zones squash the top of the loop; its
+/// mode left out): the base keeps the grey-box fit's second stage, chosen beside the first
+/// stage on the validation part, and the free run follows the test half.
+///
 /// When the base's run leaves the finite range (a valid model file edited by hand, on inputs
 /// 1e300 times larger), the prediction is reported as diverged (no values, no band, no
 /// score), and `predict` says so and writes nothing; it does not call the model damaged.

@@ -223,6 +223,18 @@ impl Candidate {
         self.staged(self.list.to_string())
     }
 
+    /// A committee member or witness of it: output chain `output` (its own, or one of its
+    /// fits without block `fold`).
+    fn member(&self, fold: Option<usize>, output: &crate::plant::OutputSpec) -> Alternative {
+        Alternative {
+            effects: self.effects(),
+            ridge: self.model.config.options.ridge,
+            fold,
+            output: output.clone(),
+            band: None,
+        }
+    }
+
     fn staged(&self, mut list: String) -> String {
         if self.output_map {
             list.push_str(" + output map");
@@ -1186,13 +1198,7 @@ impl NarxConfig {
                 let at = witnesses_of(&cands, picks[o], o, &train.outputs[o].values, n_fit);
                 trace_witnesses(&choices[o].name, &cands, &at);
                 at.iter()
-                    .map(|&i| Alternative {
-                        effects: cands[i].effects(),
-                        ridge: cands[i].model.config.options.ridge,
-                        fold: None,
-                        output: cands[i].model.plant.spec.outputs[o].clone(),
-                        band: None,
-                    })
+                    .map(|&i| cands[i].member(None, &cands[i].model.plant.spec.outputs[o]))
                     .collect()
             })
             .collect();
@@ -1265,25 +1271,18 @@ impl NarxConfig {
             // each block
             if short {
                 let c = &cands[picks[o]];
-                let member = |c: &Candidate, fold, output: &crate::plant::OutputSpec| Alternative {
-                    effects: c.effects(),
-                    ridge: c.model.config.options.ridge,
-                    fold,
-                    output: output.clone(),
-                    band: None,
-                };
                 choices[o].alternatives = committees[o]
                     .iter()
                     // (its fit without the last block where the refit failed)
                     .map(|&i| {
                         let fit = whole[i].as_ref().unwrap_or(&cands[i].model);
-                        member(&cands[i], None, &fit.plant.spec.outputs[o])
+                        cands[i].member(None, &fit.plant.spec.outputs[o])
                     })
                     .chain(
                         c.folds
                             .iter()
                             .enumerate()
-                            .map(|(k, f)| member(c, Some(k), &f.plant.spec.outputs[o])),
+                            .map(|(k, f)| c.member(Some(k), &f.plant.spec.outputs[o])),
                     )
                     .collect();
             }
@@ -1354,7 +1353,7 @@ impl NarxConfig {
         }
         // the witnesses of the outputs that use the base
         for (choice, w) in choices.iter_mut().zip(witnesses) {
-            if !short && choice.model != BaseUse::Network {
+            if choice.model != BaseUse::Network {
                 choice.witnesses = w;
             }
         }
